@@ -1,0 +1,79 @@
+//! `accel/` answers two questions about a set of world-space triangles: the closest hit along a ray
+//! and whether anything blocks a segment. Behind that small interface sits a kd-tree; `render/`
+//! never sees its layout. This module never sees a material, a light or a camera.
+
+pub mod build;
+pub mod stats;
+pub mod traverse;
+pub mod triangle;
+
+use glam::Vec3;
+
+pub use build::{BuildParams, KdTree, SplitMethod};
+
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    /// Need not be unit length; hit distances are in units of its length.
+    pub dir: Vec3,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Ray {
+        Ray { origin, dir }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// A ray-triangle intersection: distance along the ray, the triangle, and barycentric weights of its
+/// second and third vertex (the first weighs `1 - b1 - b2`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub prim: u32,
+    pub b1: f32,
+    pub b2: f32,
+}
+
+/// The query interface the renderer uses.
+pub trait Intersect: Sync {
+    /// Closest hit with `0 < t < t_max`.
+    fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit>;
+    /// Whether any triangle is hit with `0 < t < t_max` (shadow rays).
+    fn any_hit(&self, ray: &Ray, t_max: f32) -> bool;
+}
+
+/// The brute-force oracle: tests every triangle. Used by tests and as the slowest baseline.
+pub struct BruteForce {
+    pub triangles: Vec<[Vec3; 3]>,
+}
+
+impl Intersect for BruteForce {
+    fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let pre = triangle::RayPre::new(ray);
+        let mut best: Option<Hit> = None;
+        let mut t_best = t_max;
+        for (i, tri) in self.triangles.iter().enumerate() {
+            if let Some((t, b1, b2)) = triangle::intersect(&pre, tri, t_best) {
+                t_best = t;
+                best = Some(Hit {
+                    t,
+                    prim: i as u32,
+                    b1,
+                    b2,
+                });
+            }
+        }
+        best
+    }
+
+    fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
+        let pre = triangle::RayPre::new(ray);
+        self.triangles
+            .iter()
+            .any(|tri| triangle::intersect(&pre, tri, t_max).is_some())
+    }
+}

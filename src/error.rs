@@ -1,0 +1,68 @@
+//! The one error type of the library. Every variant names the file it is about and says what is
+//! wrong in words a user can act on; `main.rs` maps variants to exit statuses (2 for bad input).
+
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A pipeline file problem located at a line and column.
+    #[error("{}:{line}:{column}: {message}", file.display())]
+    Pipeline {
+        file: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    /// A scene (glTF) problem; `object` is a JSON-pointer-like path such as
+    /// `meshes[3].primitives[0].attributes.POSITION`, or empty when the whole file is at fault.
+    #[error("{}: {}{message}", file.display(), if object.is_empty() { String::new() } else { format!("{object}: ") })]
+    Scene {
+        file: PathBuf,
+        object: String,
+        message: String,
+    },
+    /// Bad input that is neither a pipeline nor a scene: a command-line value, an image to compare.
+    #[error("{}: {message}", file.display())]
+    Input { file: PathBuf, message: String },
+    /// Reading or writing a file failed for a reason outside the input's content.
+    #[error("{}: {source}", file.display())]
+    Io {
+        file: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl Error {
+    pub fn scene(file: &Path, object: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Scene {
+            file: file.to_path_buf(),
+            object: object.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn input(file: &Path, message: impl Into<String>) -> Self {
+        Error::Input {
+            file: file.to_path_buf(),
+            message: message.into(),
+        }
+    }
+
+    pub fn io(file: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            file: file.to_path_buf(),
+            source,
+        }
+    }
+
+    /// Exit status for the command line: 2 for anything the user's input caused, 1 otherwise.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::Io { source, .. } if source.kind() != std::io::ErrorKind::NotFound => 1,
+            _ => 2,
+        }
+    }
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;

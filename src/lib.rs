@@ -1,0 +1,14 @@
+//! stereotrace: renders animated glTF 2.0 scenes in stereo by Whitted ray tracing.
+//!
+//! A pipeline file drives a frame loop; each frame flows one way through
+//! `scene` (pose at time t) -> `accel` (kd-tree) -> `render` (trace both eyes) -> `output`.
+
+pub mod accel;
+pub mod error;
+pub mod info;
+pub mod output;
+pub mod pipeline;
+pub mod render;
+pub mod scene;
+
+pub use error::{Error, Result};

@@ -1,0 +1,196 @@
+//! OpenEXR stereo files, following OpenEXR's multi-view convention (docs: MultiViewOpenEXR) so that
+//! OpenImageIO, Nuke and Blender read the views: one single-part file with a `multiView` attribute
+//! (`left` first, so it is the default view with plain `R,G,B` channels; the other view as
+//! `right.R` etc.), or one file per view carrying a `view` attribute. Scanline, ZIP, float32 or half.
+
+use super::image::Image;
+use super::write_atomic;
+use crate::error::{Error, Result};
+use exr::prelude::*;
+use smallvec::SmallVec;
+use std::path::Path;
+
+fn encoding() -> Encoding {
+    Encoding::SMALL_LOSSLESS
+}
+
+fn samples(values: Vec<f32>, half: bool) -> FlatSamples {
+    if half {
+        FlatSamples::F16(values.into_iter().map(f16::from_f32).collect())
+    } else {
+        FlatSamples::F32(values)
+    }
+}
+
+fn rgb_channels(image: &Image, prefix: &str, half: bool) -> Vec<AnyChannel<FlatSamples>> {
+    ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            AnyChannel::new(
+                Text::from(format!("{prefix}{name}").as_str()),
+                samples(image.channel(c), half),
+            )
+        })
+        .collect()
+}
+
+fn write_layer(
+    path: &Path,
+    size: (usize, usize),
+    attributes: LayerAttributes,
+    channels: Vec<AnyChannel<FlatSamples>>,
+) -> Result<()> {
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels.into_iter().collect();
+    let layer = Layer::new(size, attributes, encoding(), AnyChannels::sort(list));
+    let image = exr::image::Image::from_layer(layer);
+    write_atomic(path, |w| {
+        image
+            .write()
+            .to_buffered(w)
+            .map_err(|e| std::io::Error::other(e.to_string()))
+    })
+}
+
+fn attributes() -> LayerAttributes {
+    LayerAttributes {
+        software_name: Some(Text::from("stereotrace")),
+        ..LayerAttributes::default()
+    }
+}
+
+/// Writes views into one single-part multi-view file; the first view is the default view.
+/// A single view named `center` is written as a plain RGB file without multi-view attributes.
+pub fn write_multiview(path: &Path, views: &[(&str, &Image)], half: bool) -> Result<()> {
+    let first = views
+        .first()
+        .ok_or_else(|| Error::input(path, "no view to write"))?
+        .1;
+    let mut channels = Vec::new();
+    for (i, (name, img)) in views.iter().enumerate() {
+        let prefix = if i == 0 {
+            String::new()
+        } else {
+            format!("{name}.")
+        };
+        channels.extend(rgb_channels(img, &prefix, half));
+    }
+    let mut attrs = attributes();
+    if !(views.len() == 1 && views[0].0 == "center") {
+        attrs.multi_view_names = Some(views.iter().map(|(n, _)| Text::from(*n)).collect());
+    }
+    write_layer(path, (first.width, first.height), attrs, channels)
+}
+
+/// Writes one view into its own file with a `view` attribute.
+pub fn write_single_view(path: &Path, view: &str, image: &Image, half: bool) -> Result<()> {
+    let mut attrs = attributes();
+    if view != "center" {
+        attrs.view_name = Some(Text::from(view));
+    }
+    write_layer(
+        path,
+        (image.width, image.height),
+        attrs,
+        rgb_channels(image, "", half),
+    )
+}
+
+/// Every view of an EXR file as `(name, image)`: multi-view single-part files are split by their
+/// channel prefixes, multi-part files by each part's `view` attribute; a file without views yields
+/// one view named by its layer name, or `""`.
+pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| Error::input(path, format!("cannot read EXR: {e}")))?;
+    let mut views: Vec<(String, [Option<Vec<f32>>; 3], (usize, usize))> = Vec::new();
+    for layer in &image.layer_data {
+        let size = (layer.size.0, layer.size.1);
+        let names: Vec<String> = layer
+            .attributes
+            .multi_view_names
+            .as_ref()
+            .map(|v| v.iter().map(|t| t.to_string()).collect())
+            .unwrap_or_default();
+        let part_view = layer
+            .attributes
+            .view_name
+            .as_ref()
+            .map(|t| t.to_string())
+            .or_else(|| names.first().cloned())
+            .or_else(|| layer.attributes.layer_name.as_ref().map(|t| t.to_string()))
+            .unwrap_or_default();
+        for ch in &layer.channel_data.list {
+            let full = ch.name.to_string();
+            let (view, base) = match full.rsplit_once('.') {
+                Some((prefix, base)) if names.iter().any(|n| n == prefix) => {
+                    (prefix.to_string(), base.to_string())
+                }
+                _ => (part_view.clone(), full.clone()),
+            };
+            let c = match base.as_str() {
+                "R" => 0,
+                "G" => 1,
+                "B" => 2,
+                _ => continue,
+            };
+            let entry = match views.iter().position(|(n, _, _)| *n == view) {
+                Some(i) => i,
+                None => {
+                    views.push((view.clone(), [None, None, None], size));
+                    views.len() - 1
+                }
+            };
+            views[entry].1[c] = Some(ch.sample_data.values_as_f32().collect());
+        }
+    }
+    views
+        .into_iter()
+        .map(|(name, [r, g, b], (w, h))| match (r, g, b) {
+            (Some(r), Some(g), Some(b)) => Ok((name, Image::from_channels(w, h, &r, &g, &b))),
+            _ => Err(Error::input(
+                path,
+                format!("view '{name}' lacks one of the R, G, B channels"),
+            )),
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn gradient(w: usize, h: usize, k: f32) -> Image {
+        let mut img = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                img.set(x, y, Vec3::new(x as f32 * k, y as f32, 0.25 + k));
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn multiview_file_round_trips_both_views() {
+        let dir = std::env::temp_dir().join(format!("st-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("pair.exr");
+        let (l, r) = (gradient(7, 5, 1.0), gradient(7, 5, 2.0));
+        write_multiview(&path, &[("left", &l), ("right", &r)], false).unwrap();
+        let views = read_views(&path).unwrap();
+        let get = |n: &str| &views.iter().find(|(v, _)| v == n).unwrap().1;
+        assert_eq!(get("left"), &l);
+        assert_eq!(get("right"), &r);
+        write_single_view(&path, "right", &r, true).unwrap();
+        let views = read_views(&path).unwrap();
+        assert_eq!(views[0].0, "right");
+        assert!((views[0].1.get(3, 2) - r.get(3, 2)).abs().max_element() < 1e-2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,251 @@
+//! The frame loop: for every frame, pose the scene, bring the kd-tree up to date, trace each eye
+//! once, and hand the stereo frame to every output. Data flows one way:
+//! scene -> accel -> render -> outputs.
+
+use super::{ExrViews, LoadedPipeline, OutputSpec};
+use crate::accel::{BuildParams, KdTree};
+use crate::error::{Error, Result};
+use crate::output::{exr, image::Image, png};
+use crate::render::frame::{FilmParams, render_eye, tile_count};
+use crate::render::{Eye, EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings};
+use crate::scene::camera::framing_camera;
+use crate::scene::light::{Light, LightKind};
+use crate::scene::pose::{self, PosedScene};
+use glam::{Mat4, Vec3};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// Inclusive frame range overriding the pipeline's.
+    pub frames: Option<(u32, u32)>,
+    /// Thread count overriding the pipeline's (0 = all cores).
+    pub threads: Option<usize>,
+    pub out_dir: PathBuf,
+    /// Draw progress bars (the caller decides: not with --quiet, not when stderr is no terminal).
+    pub progress: bool,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct RunSummary {
+    pub frames: usize,
+    /// Eye images traced (a stereo frame traces two).
+    pub eyes_traced: usize,
+    pub rays: RayCounts,
+    pub seconds: f64,
+    pub trace_seconds: f64,
+    pub files: Vec<PathBuf>,
+}
+
+/// A stereo (or mono) frame: linear radiance per eye.
+pub struct StereoFrame {
+    pub frame: u32,
+    pub eyes: Vec<(Eye, Image)>,
+}
+
+/// The camera placement and lens for a frame, with the scene's fallbacks applied.
+fn frame_camera(p: &LoadedPipeline, posed: &PosedScene) -> (Mat4, f32, f32, Option<f32>) {
+    match p.camera_instance {
+        Some(i) => {
+            let pc = &posed.cameras[i];
+            let def = &p.scene.cameras[pc.camera];
+            (pc.world, def.yfov, def.znear, def.zfar)
+        }
+        None => {
+            let (lo, hi) = posed
+                .geometry
+                .bounds()
+                .unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
+            let (def, world) = framing_camera(lo, hi);
+            (world, def.yfov, def.znear, def.zfar)
+        }
+    }
+}
+
+/// A scene without lights gets a head-light: a point light at the rig's centre whose intensity is
+/// `pi * d^2` (d: distance to the centre of the scene's bounds), so a white diffuse surface facing
+/// the camera at the centre has radiance 1.
+fn head_light(camera: &Mat4, posed: &PosedScene) -> Light {
+    let position = camera.transform_point3(Vec3::ZERO);
+    let center = posed
+        .geometry
+        .bounds()
+        .map_or(Vec3::ZERO, |(lo, hi)| (lo + hi) * 0.5);
+    let d2 = (center - position).length_squared().max(1e-6);
+    Light {
+        kind: LightKind::Point,
+        power: Vec3::splat(std::f32::consts::PI * d2),
+        position,
+        direction: camera.transform_vector3(Vec3::NEG_Z),
+        range: None,
+    }
+}
+
+fn bar(multi: &MultiProgress, len: u64, template: &str) -> ProgressBar {
+    let b = multi.add(ProgressBar::new(len));
+    b.set_style(
+        ProgressStyle::with_template(template)
+            .expect("progress templates are constant and valid")
+            .progress_chars("=> "),
+    );
+    b
+}
+
+pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
+    let spec = &p.spec;
+    let (start, end) = opts.frames.unwrap_or((spec.frames.start, spec.frames.end));
+    if end < start {
+        return Err(Error::input(
+            &p.file,
+            format!("frame range {start}..{end} is empty"),
+        ));
+    }
+    if end > start
+        && let Some(i) = p.templates.iter().position(|t| !t.has_frame())
+    {
+        return Err(Error::input(
+            &p.file,
+            format!(
+                "output {i} has no {{frame}} in its path but frames {start}..{end} are requested"
+            ),
+        ));
+    }
+    let threads = opts.threads.unwrap_or(spec.render.threads);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::input(&p.file, format!("cannot start {threads} threads: {e}")))?;
+    pool.install(|| run_frames(p, opts, start, end))
+}
+
+fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Result<RunSummary> {
+    let spec = &p.spec;
+    let t0 = Instant::now();
+    let eyes = p.eyes();
+    let (w, h) = (spec.render.width as usize, spec.render.height as usize);
+
+    let multi = MultiProgress::with_draw_target(if opts.progress {
+        ProgressDrawTarget::stderr()
+    } else {
+        ProgressDrawTarget::hidden()
+    });
+    let frame_bar = bar(
+        &multi,
+        (end - start + 1) as u64,
+        "frames {bar:30} {pos}/{len} eta {eta}",
+    );
+    let tile_bar = bar(
+        &multi,
+        (tile_count(w, h) * eyes.len()) as u64,
+        "tiles  {bar:30} {pos}/{len} eta {eta} {msg}",
+    );
+
+    // Static geometry: posed and built once for the whole range.
+    let posed = pose::pose(&p.scene, &pose::rest_locals(&p.scene));
+    let triangles: Vec<[Vec3; 3]> = (0..posed.geometry.triangles.len())
+        .map(|i| posed.geometry.triangle(i))
+        .collect();
+    let tree = KdTree::build(triangles, BuildParams::with_method(spec.accel.split));
+
+    let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed);
+    let lights = if posed.lights.is_empty() {
+        vec![head_light(&camera_world, &posed)]
+    } else {
+        posed.lights.clone()
+    };
+    let integrator = Integrator {
+        scene: SceneView {
+            accel: &tree,
+            geometry: &posed.geometry,
+            materials: &p.scene.materials,
+            textures: &p.scene.textures,
+            lights: &lights,
+        },
+        settings: TraceSettings {
+            max_depth: spec.render.max_depth,
+            shading: spec.render.shading,
+            background: Vec3::from(spec.render.background),
+        },
+    };
+    let rig = RigParams {
+        rig: spec.stereo.rig,
+        interaxial: spec.stereo.interaxial,
+        convergence: spec.stereo.convergence,
+        width: spec.render.width,
+        height: spec.render.height,
+        yfov,
+        znear,
+        zfar,
+    };
+
+    let mut summary = RunSummary::default();
+    for frame in start..=end {
+        tile_bar.reset();
+        let mut stereo = StereoFrame {
+            frame,
+            eyes: Vec::new(),
+        };
+        for &eye in &eyes {
+            tile_bar.set_message(format!("frame {frame} {}", eye.name()));
+            let camera = EyeCamera::for_eye(camera_world, &rig, eye);
+            let film = FilmParams {
+                width: w,
+                height: h,
+                spp: spec.render.spp,
+                frame,
+                eye_seed: eye as u32,
+            };
+            let t = Instant::now();
+            let (image, counts) = render_eye(&integrator, &camera, &film, &|| tile_bar.inc(1));
+            summary.trace_seconds += t.elapsed().as_secs_f64();
+            summary.rays.add(&counts);
+            summary.eyes_traced += 1;
+            stereo.eyes.push((eye, image));
+        }
+        summary.files.extend(write_outputs(p, opts, &stereo)?);
+        summary.frames += 1;
+        frame_bar.inc(1);
+    }
+    tile_bar.finish_and_clear();
+    frame_bar.finish_and_clear();
+    summary.seconds = t0.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Hands one stereo frame to every output; returns the files written.
+pub fn write_outputs(
+    p: &LoadedPipeline,
+    opts: &RunOptions,
+    f: &StereoFrame,
+) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for (spec, template) in p.spec.outputs.iter().zip(&p.templates) {
+        match spec {
+            OutputSpec::Exr { half, views, .. } => match views {
+                ExrViews::Single => {
+                    let path = template.path(&opts.out_dir, f.frame, "");
+                    let list: Vec<(&str, &Image)> =
+                        f.eyes.iter().map(|(e, img)| (e.name(), img)).collect();
+                    exr::write_multiview(&path, &list, *half)?;
+                    files.push(path);
+                }
+                ExrViews::Separate => {
+                    for (eye, img) in &f.eyes {
+                        let path = template.path(&opts.out_dir, f.frame, eye.name());
+                        exr::write_single_view(&path, eye.name(), img, *half)?;
+                        files.push(path);
+                    }
+                }
+            },
+            OutputSpec::Png { .. } => {
+                for (eye, img) in &f.eyes {
+                    let path = template.path(&opts.out_dir, f.frame, eye.name());
+                    png::write_png(&path, img, &spec.display())?;
+                    files.push(path);
+                }
+            }
+        }
+    }
+    Ok(files)
+}

@@ -1,0 +1,254 @@
+//! The stereo rig: from one glTF camera (its node's world transform and vertical field of view) to
+//! one pinhole camera per eye. WHITTED.md section 2 fixes the convention: eyes sit at
+//! `x_e = -+interaxial/2` on the camera's local X axis; for `off-axis` both look down the same
+//! axis and their frusta are shifted so that the plane at `convergence` has zero parallax;
+//! `parallel` drops the shift (zero parallax at infinity); `toe-in` turns each eye toward the
+//! convergence point on the axis (keystone and vertical parallax away from the centre, kept
+//! because users ask to reproduce it); `mono` is the centre eye alone.
+
+use crate::accel::Ray;
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Rig {
+    #[default]
+    OffAxis,
+    Parallel,
+    ToeIn,
+    Mono,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Eye {
+    Left,
+    Right,
+    /// The mono render.
+    Center,
+}
+
+impl Eye {
+    pub fn name(self) -> &'static str {
+        match self {
+            Eye::Left => "left",
+            Eye::Right => "right",
+            Eye::Center => "center",
+        }
+    }
+
+    /// Signed fraction of the interaxial distance: -1/2 left, +1/2 right, 0 centre.
+    pub fn offset_fraction(self) -> f32 {
+        match self {
+            Eye::Left => -0.5,
+            Eye::Right => 0.5,
+            Eye::Center => 0.0,
+        }
+    }
+}
+
+/// Everything the rig needs besides the eye.
+#[derive(Clone, Copy, Debug)]
+pub struct RigParams {
+    pub rig: Rig,
+    pub interaxial: f32,
+    pub convergence: f32,
+    pub width: u32,
+    pub height: u32,
+    pub yfov: f32,
+    pub znear: f32,
+    pub zfar: Option<f32>,
+}
+
+/// One eye's pinhole camera.
+#[derive(Clone, Debug)]
+pub struct EyeCamera {
+    /// Rigid world transform of the rig's centre (the glTF camera node).
+    world: Mat4,
+    /// Eye position on the rig's local X axis, metres.
+    x_e: f32,
+    /// Horizontal tangent shift of the frustum (off-axis only): `x_e / convergence`.
+    shift: f32,
+    /// Rotation of the eye about its local Y axis (toe-in only).
+    toe: Mat3,
+    tan_x: f32,
+    tan_y: f32,
+    width: f32,
+    height: f32,
+    znear: f32,
+    zfar: Option<f32>,
+}
+
+impl EyeCamera {
+    /// Camera for an eye placed at `x_e` metres along the rig's X axis (the stereo eyes use
+    /// `interaxial * Eye::offset_fraction`; wobble views use intermediate positions).
+    pub fn at_offset(world: Mat4, p: &RigParams, x_e: f32) -> EyeCamera {
+        let tan_y = (p.yfov * 0.5).tan();
+        let (shift, toe) = match p.rig {
+            Rig::OffAxis => (x_e / p.convergence, Mat3::IDENTITY),
+            Rig::ToeIn => (0.0, Mat3::from_rotation_y(x_e.atan2(p.convergence))),
+            Rig::Parallel | Rig::Mono => (0.0, Mat3::IDENTITY),
+        };
+        EyeCamera {
+            world,
+            x_e,
+            shift,
+            toe,
+            tan_x: tan_y * p.width as f32 / p.height as f32,
+            tan_y,
+            width: p.width as f32,
+            height: p.height as f32,
+            znear: p.znear,
+            zfar: p.zfar,
+        }
+    }
+
+    pub fn for_eye(world: Mat4, p: &RigParams, eye: Eye) -> EyeCamera {
+        let x_e = if p.rig == Rig::Mono {
+            0.0
+        } else {
+            p.interaxial * eye.offset_fraction()
+        };
+        Self::at_offset(world, p, x_e)
+    }
+
+    /// World position of the eye.
+    pub fn position(&self) -> Vec3 {
+        self.world.transform_point3(Vec3::new(self.x_e, 0.0, 0.0))
+    }
+
+    /// Primary ray through film point (px, py) in pixels (x right, y down), starting on the near
+    /// plane, and the far limit in units of the (unit) direction.
+    pub fn ray(&self, px: f32, py: f32) -> (Ray, f32) {
+        let eye_dir = Vec3::new(
+            (2.0 * px / self.width - 1.0) * self.tan_x - self.shift,
+            (1.0 - 2.0 * py / self.height) * self.tan_y,
+            -1.0,
+        );
+        // eye_dir has depth 1 in the eye's own frame, so multiples of it measure depth.
+        let cam_dir = self.toe * eye_dir;
+        let origin = self.world.transform_point3(Vec3::new(self.x_e, 0.0, 0.0));
+        let dir = self.world.transform_vector3(cam_dir);
+        let len = dir.length();
+        let start = origin + dir * self.znear;
+        let t_max = self
+            .zfar
+            .map_or(f32::INFINITY, |f| (f - self.znear).max(0.0) * len);
+        (Ray::new(start, dir / len), t_max)
+    }
+
+    /// Film position (pixels) of a world point, or `None` behind the eye: the inverse of `ray`.
+    pub fn project(&self, world_point: Vec3) -> Option<Vec2> {
+        let local =
+            self.world.inverse().transform_point3(world_point) - Vec3::new(self.x_e, 0.0, 0.0);
+        let e = self.toe.transpose() * local;
+        if e.z >= 0.0 {
+            return None;
+        }
+        let x = e.x / -e.z;
+        let y = e.y / -e.z;
+        Some(Vec2::new(
+            ((x + self.shift) / self.tan_x + 1.0) * 0.5 * self.width,
+            (1.0 - y / self.tan_y) * 0.5 * self.height,
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+
+    fn params(rig: Rig) -> RigParams {
+        RigParams {
+            rig,
+            interaxial: 0.065,
+            convergence: 3.0,
+            width: 640,
+            height: 360,
+            yfov: 0.8,
+            znear: 0.1,
+            zfar: None,
+        }
+    }
+
+    fn world() -> Mat4 {
+        Mat4::from_rotation_translation(
+            Quat::from_euler(glam::EulerRot::YXZ, 0.4, -0.2, 0.05),
+            Vec3::new(1.0, 2.0, 5.0),
+        )
+    }
+
+    fn rig_point(local: Vec3) -> Vec3 {
+        world().transform_point3(local)
+    }
+
+    #[test]
+    fn off_axis_points_on_the_convergence_plane_land_on_the_same_pixel_in_both_eyes() {
+        let p = params(Rig::OffAxis);
+        let l = EyeCamera::for_eye(world(), &p, Eye::Left);
+        let r = EyeCamera::for_eye(world(), &p, Eye::Right);
+        for (x, y) in [(0.0, 0.0), (0.7, 0.3), (-1.2, -0.5), (1.5, 0.8)] {
+            let q = rig_point(Vec3::new(x, y, -3.0));
+            let (a, b) = (l.project(q).unwrap(), r.project(q).unwrap());
+            assert!((a - b).length() < 1e-3, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn off_axis_parallax_matches_the_whitted_formula_and_has_no_vertical_part() {
+        let p = params(Rig::OffAxis);
+        let l = EyeCamera::for_eye(world(), &p, Eye::Left);
+        let r = EyeCamera::for_eye(world(), &p, Eye::Right);
+        let tan_x = (p.yfov * 0.5).tan() * 640.0 / 360.0;
+        for z in [1.0f32, 2.0, 6.0, 50.0] {
+            let q = rig_point(Vec3::new(0.3, -0.2, -z));
+            let d = r.project(q).unwrap() - l.project(q).unwrap();
+            let expected = 320.0 * p.interaxial * (1.0 / p.convergence - 1.0 / z) / tan_x;
+            assert!(
+                (d.x - expected).abs() < 2e-3,
+                "z={z}: {} vs {expected}",
+                d.x
+            );
+            assert!(d.y.abs() < 1e-3);
+        }
+    }
+
+    #[test]
+    fn toe_in_converges_on_the_axis_only() {
+        let p = params(Rig::ToeIn);
+        let l = EyeCamera::for_eye(world(), &p, Eye::Left);
+        let r = EyeCamera::for_eye(world(), &p, Eye::Right);
+        let on_axis = rig_point(Vec3::new(0.0, 0.0, -3.0));
+        assert!((l.project(on_axis).unwrap() - r.project(on_axis).unwrap()).length() < 1e-3);
+        let corner = rig_point(Vec3::new(1.5, 0.8, -3.0));
+        let d = r.project(corner).unwrap() - l.project(corner).unwrap();
+        assert!(
+            d.y.abs() > 1e-2,
+            "toe-in should show vertical parallax off-axis"
+        );
+    }
+
+    #[test]
+    fn ray_and_project_are_inverse() {
+        for rig in [Rig::OffAxis, Rig::Parallel, Rig::ToeIn, Rig::Mono] {
+            let p = params(rig);
+            let c = EyeCamera::for_eye(world(), &p, Eye::Left);
+            let (ray, _) = c.ray(123.25, 77.5);
+            let px = c.project(ray.at(4.0)).unwrap();
+            assert!(
+                (px - Vec2::new(123.25, 77.5)).length() < 1e-2,
+                "{rig:?} {px}"
+            );
+        }
+    }
+
+    #[test]
+    fn primary_rays_start_on_the_near_plane() {
+        let p = params(Rig::OffAxis);
+        let c = EyeCamera::for_eye(Mat4::IDENTITY, &p, Eye::Right);
+        let (ray, _) = c.ray(0.0, 0.0);
+        assert!((ray.origin.z + p.znear).abs() < 1e-6);
+    }
+}

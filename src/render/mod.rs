@@ -1,0 +1,13 @@
+//! `render/` turns a posed frame into linear radiance images, one per eye: the stereo rig, the
+//! Whitted integrator and its shading models, pixel sampling, and the tiled parallel frame loop.
+//! It sees geometry only through `accel::Intersect` and never knows an output file format.
+
+pub mod camera;
+pub mod frame;
+pub mod integrator;
+pub mod sampling;
+pub mod shading;
+
+pub use camera::{Eye, EyeCamera, Rig, RigParams};
+pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings};
+pub use shading::ShadingModel;

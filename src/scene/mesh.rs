@@ -1,0 +1,247 @@
+//! Triangle meshes as glTF stores them: object-space vertex attributes and index triples per
+//! primitive. Strips and fans become lists here; points and lines are skipped with a warning
+//! (a ray tracer has no width to give them).
+
+use super::buffers::check_accessor;
+use crate::error::{Error, Result};
+use glam::{Vec2, Vec3, Vec4};
+use gltf::mesh::Mode;
+use std::path::Path;
+
+/// One glTF primitive, triangulated.
+#[derive(Clone, Debug)]
+pub struct Primitive {
+    pub positions: Vec<Vec3>,
+    /// Unit vertex normals; `None` when the file has none: shading then uses the flat geometric
+    /// normal, which is what the glTF specification asks for ("flat normals").
+    pub normals: Option<Vec<Vec3>>,
+    /// TEXCOORD_0 and TEXCOORD_1 (zero when absent).
+    pub tex_coords: [Option<Vec<Vec2>>; 2],
+    /// COLOR_0 as linear RGBA (multiplies the base colour, per the specification).
+    pub colors: Option<Vec<Vec4>>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Index into `Scene::materials` (the last entry is the default material).
+    pub material: usize,
+    /// Morph targets: position and normal deltas (loaded for the animation stage).
+    pub morph_targets: Vec<MorphTarget>,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct MorphTarget {
+    pub positions: Option<Vec<Vec3>>,
+    pub normals: Option<Vec<Vec3>>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub name: Option<String>,
+    pub primitives: Vec<Primitive>,
+    /// `mesh.weights`: default morph weights.
+    pub weights: Vec<f32>,
+}
+
+impl Mesh {
+    pub fn triangle_count(&self) -> usize {
+        self.primitives.iter().map(|p| p.triangles.len()).sum()
+    }
+}
+
+pub(super) fn load_mesh(
+    file: &Path,
+    buffers: &[Vec<u8>],
+    mesh: &gltf::Mesh,
+    default_material: usize,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh> {
+    let mut primitives = Vec::new();
+    for prim in mesh.primitives() {
+        let object = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+        if matches!(
+            prim.mode(),
+            Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
+        ) {
+            warnings.push(format!(
+                "{}: {object}: mode {:?} has no surface to ray trace; skipped",
+                file.display(),
+                prim.mode()
+            ));
+            continue;
+        }
+        primitives.push(load_primitive(
+            file,
+            buffers,
+            &prim,
+            &object,
+            default_material,
+        )?);
+    }
+    Ok(Mesh {
+        name: mesh.name().map(str::to_owned),
+        primitives,
+        weights: mesh.weights().map(<[f32]>::to_vec).unwrap_or_default(),
+    })
+}
+
+fn load_primitive(
+    file: &Path,
+    buffers: &[Vec<u8>],
+    prim: &gltf::Primitive,
+    object: &str,
+    default_material: usize,
+) -> Result<Primitive> {
+    for (semantic, accessor) in prim.attributes() {
+        check_accessor(
+            file,
+            buffers,
+            &accessor,
+            &format!("{object}.attributes.{}", semantic.to_string()),
+        )?;
+    }
+    if let Some(indices) = prim.indices() {
+        check_accessor(file, buffers, &indices, &format!("{object}.indices"))?;
+    }
+    let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or_else(|| Error::scene(file, object, "has no POSITION attribute"))?
+        .map(Vec3::from)
+        .collect();
+    let n = positions.len();
+    check_finite(file, &format!("{object}.attributes.POSITION"), &positions)?;
+
+    let normals = match reader.read_normals() {
+        Some(it) => {
+            let normals: Vec<Vec3> = it.map(Vec3::from).collect();
+            check_count(
+                file,
+                &format!("{object}.attributes.NORMAL"),
+                normals.len(),
+                n,
+            )?;
+            check_finite(file, &format!("{object}.attributes.NORMAL"), &normals)?;
+            Some(normals.iter().map(|v| v.normalize_or_zero()).collect())
+        }
+        None => None,
+    };
+    let mut tex_coords: [Option<Vec<Vec2>>; 2] = [None, None];
+    for (set, slot) in tex_coords.iter_mut().enumerate() {
+        if let Some(it) = reader.read_tex_coords(set as u32) {
+            let uv: Vec<Vec2> = it.into_f32().map(Vec2::from).collect();
+            check_count(
+                file,
+                &format!("{object}.attributes.TEXCOORD_{set}"),
+                uv.len(),
+                n,
+            )?;
+            *slot = Some(uv);
+        }
+    }
+    let colors = match reader.read_colors(0) {
+        Some(it) => {
+            let c: Vec<Vec4> = it.into_rgba_f32().map(Vec4::from).collect();
+            check_count(file, &format!("{object}.attributes.COLOR_0"), c.len(), n)?;
+            Some(c)
+        }
+        None => None,
+    };
+    let indices: Vec<u32> = match reader.read_indices() {
+        Some(it) => it.into_u32().collect(),
+        None => (0..n as u32).collect(),
+    };
+    if let Some(bad) = indices.iter().position(|&i| i as usize >= n) {
+        return Err(Error::scene(
+            file,
+            format!("{object}.indices"),
+            format!(
+                "index {} at position {bad} is out of range: the primitive has {n} vertices",
+                indices[bad]
+            ),
+        ));
+    }
+    let triangles = triangulate(prim.mode(), &indices);
+
+    let mut morph_targets = Vec::new();
+    for (t, (p, nrm, _)) in reader.read_morph_targets().enumerate() {
+        let positions: Option<Vec<Vec3>> = p.map(|it| it.map(Vec3::from).collect());
+        let normals: Option<Vec<Vec3>> = nrm.map(|it| it.map(Vec3::from).collect());
+        for (what, v) in [("POSITION", &positions), ("NORMAL", &normals)] {
+            if let Some(v) = v {
+                let obj = format!("{object}.targets[{t}].{what}");
+                check_count(file, &obj, v.len(), n)?;
+                check_finite(file, &obj, v)?;
+            }
+        }
+        morph_targets.push(MorphTarget { positions, normals });
+    }
+
+    Ok(Primitive {
+        positions,
+        normals,
+        tex_coords,
+        colors,
+        triangles,
+        material: prim.material().index().unwrap_or(default_material),
+        morph_targets,
+    })
+}
+
+/// Index triples of a triangle list, strip or fan (glTF 2.0 section 3.7.2.1 gives the vertex order
+/// of each so that every triangle keeps the primitive's winding).
+fn triangulate(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
+            .map(|i| {
+                if i % 2 == 0 {
+                    [idx[i], idx[i + 1], idx[i + 2]]
+                } else {
+                    [idx[i + 1], idx[i], idx[i + 2]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (1..idx.len().saturating_sub(1))
+            .map(|i| [idx[i], idx[i + 1], idx[0]])
+            .collect(),
+        _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    }
+}
+
+fn check_count(file: &Path, object: &str, got: usize, want: usize) -> Result<()> {
+    if got == want {
+        Ok(())
+    } else {
+        Err(Error::scene(
+            file,
+            object,
+            format!("has {got} elements but POSITION has {want}"),
+        ))
+    }
+}
+
+fn check_finite(file: &Path, object: &str, values: &[Vec3]) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(Error::scene(
+            file,
+            object,
+            format!("element {i} is not finite ({:?})", values[i]),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans_keep_the_winding_of_their_first_triangle() {
+        assert_eq!(
+            triangulate(Mode::TriangleStrip, &[0, 1, 2, 3, 4]),
+            vec![[0, 1, 2], [2, 1, 3], [2, 3, 4]]
+        );
+        assert_eq!(
+            triangulate(Mode::TriangleFan, &[0, 1, 2, 3]),
+            vec![[1, 2, 0], [2, 3, 0]]
+        );
+        assert_eq!(triangulate(Mode::Triangles, &[0, 1, 2, 3]), vec![[0, 1, 2]]);
+    }
+}

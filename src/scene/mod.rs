@@ -1,0 +1,302 @@
+//! `scene/` turns a glTF 2.0 file into a [`Scene`]: nodes, meshes, materials, lights, cameras and
+//! what is animated. It is the only module that knows glTF. It never sees a ray, a kd-tree or an
+//! output file; [`pose`] turns a scene into world-space geometry for one frame.
+
+pub mod animation;
+pub mod buffers;
+pub mod camera;
+pub mod light;
+pub mod material;
+pub mod mesh;
+pub mod pose;
+
+use crate::error::{Error, Result};
+use animation::AnimationSummary;
+use camera::CameraDef;
+use glam::{Mat4, Quat, Vec3};
+use light::{LightDef, LightKind};
+use material::{Material, Texture};
+use mesh::Mesh;
+use std::path::{Path, PathBuf};
+
+/// Extensions whose meaning stereotrace renders (or, for the lights, reads).
+const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+];
+
+/// A node's local transform as stored: animation targets TRS, a matrix stays a matrix.
+#[derive(Clone, Copy, Debug)]
+pub enum Transform {
+    Matrix(Mat4),
+    Trs {
+        translation: Vec3,
+        rotation: Quat,
+        scale: Vec3,
+    },
+}
+
+impl Transform {
+    pub fn matrix(&self) -> Mat4 {
+        match *self {
+            Transform::Matrix(m) => m,
+            Transform::Trs {
+                translation,
+                rotation,
+                scale,
+            } => Mat4::from_scale_rotation_translation(scale, rotation, translation),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Node {
+    pub name: Option<String>,
+    pub transform: Transform,
+    pub children: Vec<usize>,
+    pub mesh: Option<usize>,
+    pub camera: Option<usize>,
+    pub light: Option<usize>,
+    pub skin: Option<usize>,
+    /// `node.weights`: morph weights overriding the mesh's.
+    pub weights: Option<Vec<f32>>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub source: PathBuf,
+    pub nodes: Vec<Node>,
+    /// Root nodes of the rendered glTF scene.
+    pub roots: Vec<usize>,
+    pub meshes: Vec<Mesh>,
+    /// The document's materials followed by the glTF default material.
+    pub materials: Vec<Material>,
+    /// Decoded textures by glTF texture index (`None`: no material samples it).
+    pub textures: Vec<Option<Texture>>,
+    pub lights: Vec<LightDef>,
+    pub cameras: Vec<CameraDef>,
+    pub animations: Vec<AnimationSummary>,
+    pub skin_count: usize,
+    /// Things the loader skipped or approximated; the command line prints them.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Loads a `.gltf` or `.glb` file and everything it references.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_error(path, e))?;
+        for ext in gltf.document.extensions_required() {
+            if !SUPPORTED_EXTENSIONS.contains(&ext) {
+                return Err(Error::scene(
+                    path,
+                    "extensionsRequired",
+                    format!("requires extension {ext}, which stereotrace does not support"),
+                ));
+            }
+        }
+        let mut warnings = Vec::new();
+        let unsupported: Vec<&str> = gltf
+            .document
+            .extensions_used()
+            .filter(|e| !SUPPORTED_EXTENSIONS.contains(e))
+            .collect();
+        if !unsupported.is_empty() {
+            warnings.push(format!(
+                "{}: extensions ignored: {}",
+                path.display(),
+                unsupported.join(", ")
+            ));
+        }
+        let buffers = buffers::load_buffers(path, &gltf.document, gltf.blob.as_deref())?;
+        let document = &gltf.document;
+        let (materials, textures) =
+            material::load_materials(path, document, &buffers, &mut warnings)?;
+        let default_material = materials.len() - 1;
+        let meshes = document
+            .meshes()
+            .map(|m| mesh::load_mesh(path, &buffers, &m, default_material, &mut warnings))
+            .collect::<Result<Vec<_>>>()?;
+        let nodes: Vec<Node> = document.nodes().map(load_node).collect();
+        let roots = scene_roots(path, document)?;
+        check_hierarchy(path, &nodes, &roots)?;
+        let lights = document
+            .lights()
+            .map(|ls| ls.map(load_light).collect())
+            .unwrap_or_default();
+        let mut cameras = Vec::new();
+        for c in document.cameras() {
+            match c.projection() {
+                gltf::camera::Projection::Perspective(p) => cameras.push(CameraDef {
+                    name: c.name().map(str::to_owned),
+                    yfov: p.yfov(),
+                    aspect_ratio: p.aspect_ratio(),
+                    znear: p.znear(),
+                    zfar: p.zfar(),
+                }),
+                gltf::camera::Projection::Orthographic(_) => {
+                    warnings.push(format!(
+                        "{}: cameras[{}] is orthographic, which stereo rigs do not support; it is treated as a 45-degree perspective camera if selected",
+                        path.display(),
+                        c.index()
+                    ));
+                    cameras.push(CameraDef {
+                        name: c.name().map(str::to_owned),
+                        yfov: std::f32::consts::FRAC_PI_4,
+                        aspect_ratio: None,
+                        znear: 0.01,
+                        zfar: None,
+                    });
+                }
+            }
+        }
+        if let Some(bad) = cameras
+            .iter()
+            .position(|c| !(c.yfov > 0.0 && c.yfov < std::f32::consts::PI && c.znear > 0.0))
+        {
+            return Err(Error::scene(
+                path,
+                format!("cameras[{bad}].perspective"),
+                "yfov must be in (0, pi) and znear > 0",
+            ));
+        }
+        Ok(Scene {
+            source: path.to_path_buf(),
+            nodes,
+            roots,
+            meshes,
+            materials,
+            textures,
+            lights,
+            cameras,
+            animations: document
+                .animations()
+                .map(|a| animation::summarize(&a))
+                .collect(),
+            skin_count: document.skins().len(),
+            warnings,
+        })
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(Mesh::triangle_count).sum()
+    }
+
+    /// Node indices in depth-first order from the roots (each node once).
+    pub fn traversal(&self) -> Vec<usize> {
+        let mut order = Vec::new();
+        let mut stack: Vec<usize> = self.roots.iter().rev().copied().collect();
+        while let Some(n) = stack.pop() {
+            order.push(n);
+            stack.extend(self.nodes[n].children.iter().rev());
+        }
+        order
+    }
+}
+
+fn load_node(n: gltf::Node) -> Node {
+    let transform = match n.transform() {
+        gltf::scene::Transform::Matrix { matrix } => {
+            Transform::Matrix(Mat4::from_cols_array_2d(&matrix))
+        }
+        gltf::scene::Transform::Decomposed {
+            translation,
+            rotation,
+            scale,
+        } => Transform::Trs {
+            translation: Vec3::from(translation),
+            // DESIGN.md: every quaternion is normalized before use.
+            rotation: Quat::from_array(rotation).normalize(),
+            scale: Vec3::from(scale),
+        },
+    };
+    Node {
+        name: n.name().map(str::to_owned),
+        transform,
+        children: n.children().map(|c| c.index()).collect(),
+        mesh: n.mesh().map(|m| m.index()),
+        camera: n.camera().map(|c| c.index()),
+        light: n.light().map(|l| l.index()),
+        skin: n.skin().map(|s| s.index()),
+        weights: n.weights().map(<[f32]>::to_vec),
+    }
+}
+
+fn load_light(l: gltf::khr_lights_punctual::Light) -> LightDef {
+    use gltf::khr_lights_punctual::Kind;
+    let kind = match l.kind() {
+        Kind::Point => LightKind::Point,
+        Kind::Directional => LightKind::Directional,
+        Kind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => LightKind::Spot {
+            inner_cone: inner_cone_angle,
+            outer_cone: outer_cone_angle,
+        },
+    };
+    LightDef {
+        name: l.name().map(str::to_owned),
+        kind,
+        color: Vec3::from(l.color()),
+        intensity: l.intensity(),
+        range: l.range(),
+    }
+}
+
+/// The nodes to render: the default scene, else the first scene, else every parentless node.
+fn scene_roots(path: &Path, document: &gltf::Document) -> Result<Vec<usize>> {
+    if let Some(s) = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    {
+        return Ok(s.nodes().map(|n| n.index()).collect());
+    }
+    let mut has_parent = vec![false; document.nodes().len()];
+    for n in document.nodes() {
+        for c in n.children() {
+            has_parent[c.index()] = true;
+        }
+    }
+    let roots: Vec<usize> = (0..has_parent.len()).filter(|&i| !has_parent[i]).collect();
+    if roots.is_empty() && !has_parent.is_empty() {
+        return Err(Error::scene(
+            path,
+            "nodes",
+            "every node has a parent: the hierarchy is a cycle",
+        ));
+    }
+    Ok(roots)
+}
+
+/// glTF requires the node hierarchy to be a forest; a file that breaks that would loop forever.
+fn check_hierarchy(path: &Path, nodes: &[Node], roots: &[usize]) -> Result<()> {
+    let mut seen = vec![false; nodes.len()];
+    let mut stack: Vec<usize> = roots.to_vec();
+    while let Some(n) = stack.pop() {
+        if std::mem::replace(&mut seen[n], true) {
+            return Err(Error::scene(
+                path,
+                format!("nodes[{n}]"),
+                "is reached twice from the scene's roots: the node hierarchy must be a tree",
+            ));
+        }
+        stack.extend(&nodes[n].children);
+    }
+    Ok(())
+}
+
+fn gltf_error(path: &Path, e: gltf::Error) -> Error {
+    match e {
+        gltf::Error::Validation(list) => {
+            let parts: Vec<String> = list
+                .iter()
+                .take(5)
+                .map(|(p, err)| format!("{}: {err}", p.as_str()))
+                .collect();
+            Error::scene(path, "", format!("invalid glTF: {}", parts.join("; ")))
+        }
+        other => Error::scene(path, "", format!("not a readable glTF file: {other}")),
+    }
+}
