@@ -18,7 +18,7 @@ struct Blob {
 
 impl Blob {
     fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
-        while self.bytes.len() % 4 != 0 {
+        while !self.bytes.len().is_multiple_of(4) {
             self.bytes.push(0);
         }
         let mut v = json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()});
@@ -82,12 +82,11 @@ impl Blob {
     }
 }
 
+/// Positions, normals and index triples of a mesh.
+type MeshData = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>);
+
 /// UV sphere with outward normals, counter-clockwise seen from outside.
-fn sphere(
-    radius: f32,
-    n_lon: usize,
-    n_lat: usize,
-) -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>) {
+fn sphere(radius: f32, n_lon: usize, n_lat: usize) -> MeshData {
     let (mut p, mut n, mut idx) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..=n_lat {
         let th = PI * i as f32 / n_lat as f32;
@@ -134,8 +133,8 @@ fn whitted() -> Value {
     let mut meshes = Vec::new();
     let mut nodes = Vec::new();
 
-    // Floor: a 12 m square with UVs repeating the 2x2 checker 6 times (1 m tiles).
-    let half = 6.0;
+    // Floor: a 40 m square with UVs repeating the 2x2 checker 20 times (1 m tiles).
+    let half = 20.0;
     let fp = [
         [-half, 0.0, -half],
         [half, 0.0, -half],
@@ -143,7 +142,7 @@ fn whitted() -> Value {
         [-half, 0.0, half],
     ];
     let fn_ = [[0.0, 1.0, 0.0]; 4];
-    let fuv = [[0.0, 0.0], [6.0, 0.0], [6.0, 6.0], [0.0, 6.0]];
+    let fuv = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]];
     let fi = [[0u32, 2, 1], [0, 3, 2]];
     let (p, n, u, i) = (
         blob.floats(&fp, true),
@@ -162,13 +161,14 @@ fn whitted() -> Value {
     );
     meshes.push(json!({"name": "mirror sphere", "primitives": [{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i, "material": 1, "mode": 4}]}));
     meshes.push(json!({"name": "glass sphere", "primitives": [{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i, "material": 2, "mode": 4}]}));
-    nodes.push(json!({"name": "mirror sphere", "mesh": 1, "translation": [-0.55, 0.75, -1.3], "scale": [0.75, 0.75, 0.75]}));
-    nodes.push(json!({"name": "glass sphere", "mesh": 2, "translation": [0.45, 0.8, 0.1], "scale": [0.6, 0.6, 0.6]}));
+    // Whitted's arrangement: the mirror sphere behind, the glass sphere floating in front of it.
+    nodes.push(json!({"name": "mirror sphere", "mesh": 1, "translation": [-0.7, 1.0, -1.6]}));
+    nodes.push(json!({"name": "glass sphere", "mesh": 2, "translation": [0.55, 1.05, 0.3], "scale": [0.6, 0.6, 0.6]}));
 
-    nodes.push(
-        json!({"name": "Camera", "camera": 0, "translation": [0.0, 1.35, 4.2],
-        "rotation": [-0.0871557, 0.0, 0.0, 0.9961947]}),
-    );
+    // 4.6 m back, 1.7 m up, pitched down 12 degrees.
+    let half_pitch = -12f32.to_radians() * 0.5;
+    nodes.push(json!({"name": "Camera", "camera": 0, "translation": [0.0, 1.7, 4.6],
+        "rotation": [half_pitch.sin(), 0.0, 0.0, half_pitch.cos()]}));
     nodes.push(json!({"name": "key light", "translation": [2.5, 5.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
     nodes.push(json!({"name": "fill light", "translation": [-4.0, 3.0, 1.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}));
 

@@ -96,6 +96,13 @@ pub fn write_single_view(path: &Path, view: &str, image: &Image, half: bool) -> 
     )
 }
 
+/// A view being gathered from the channels of one or more parts.
+struct PartialView {
+    name: String,
+    planes: [Option<Vec<f32>>; 3],
+    size: (usize, usize),
+}
+
 /// Every view of an EXR file as `(name, image)`: multi-view single-part files are split by their
 /// channel prefixes, multi-part files by each part's `view` attribute; a file without views yields
 /// one view named by its layer name, or `""`.
@@ -108,7 +115,7 @@ pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| Error::input(path, format!("cannot read EXR: {e}")))?;
-    let mut views: Vec<(String, [Option<Vec<f32>>; 3], (usize, usize))> = Vec::new();
+    let mut views: Vec<PartialView> = Vec::new();
     for layer in &image.layer_data {
         let size = (layer.size.0, layer.size.1);
         let names: Vec<String> = layer
@@ -139,19 +146,23 @@ pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
                 "B" => 2,
                 _ => continue,
             };
-            let entry = match views.iter().position(|(n, _, _)| *n == view) {
+            let entry = match views.iter().position(|v| v.name == view) {
                 Some(i) => i,
                 None => {
-                    views.push((view.clone(), [None, None, None], size));
+                    views.push(PartialView {
+                        name: view.clone(),
+                        planes: [None, None, None],
+                        size,
+                    });
                     views.len() - 1
                 }
             };
-            views[entry].1[c] = Some(ch.sample_data.values_as_f32().collect());
+            views[entry].planes[c] = Some(ch.sample_data.values_as_f32().collect());
         }
     }
     views
         .into_iter()
-        .map(|(name, [r, g, b], (w, h))| match (r, g, b) {
+        .map(|PartialView { name, planes: [r, g, b], size: (w, h) }| match (r, g, b) {
             (Some(r), Some(g), Some(b)) => Ok((name, Image::from_channels(w, h, &r, &g, &b))),
             _ => Err(Error::input(
                 path,

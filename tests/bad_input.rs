@@ -1,0 +1,243 @@
+//! Every kind of bad input gets a clear message naming the file and the problem, exit status 2,
+//! no panic, and no output file.
+
+mod common;
+
+use base64::Engine;
+use common::scratch;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A one-triangle glTF with an embedded buffer; `edit` may change the JSON before it is written.
+fn triangle_gltf(positions: [[f32; 3]; 3], edit: impl FnOnce(&mut serde_json::Value)) -> String {
+    let bytes: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let mut g = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"name": "Cam", "camera": 0, "translation": [0.0, 0.0, 3.0]}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [-1.0, -1.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36, "uri": format!("data:application/octet-stream;base64,{data}")}]
+    });
+    edit(&mut g);
+    serde_json::to_string(&g).unwrap()
+}
+
+const GOOD_TRIANGLE: [[f32; 3]; 3] = [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]];
+
+fn pipeline(scene: &str, extra: &str) -> String {
+    format!(
+        "[scene]\npath = \"{scene}\"\n[render]\nwidth = 8\nheight = 6\nspp = 1\n{extra}\n[[output]]\nkind = \"png\"\npath = \"img_{{eye}}.png\"\n"
+    )
+}
+
+struct Case {
+    dir: PathBuf,
+}
+
+impl Case {
+    fn new(name: &str) -> Case {
+        let dir = scratch(&format!("bad-{name}"));
+        std::fs::create_dir_all(dir.join("out")).unwrap();
+        Case { dir }
+    }
+
+    fn file(&self, name: &str, content: impl AsRef<[u8]>) -> PathBuf {
+        let p = self.dir.join(name);
+        if let Some(parent) = p.parent() {
+            std::fs::create_dir_all(parent).unwrap();
+        }
+        std::fs::write(&p, content).unwrap();
+        p
+    }
+
+    /// Runs `render` and checks the failure contract; returns stderr.
+    fn fails(&self, pipeline: &Path, expected_in_message: &[&str]) -> String {
+        let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .args(["render", "--quiet", "--out"])
+            .arg(self.dir.join("out"))
+            .arg(pipeline)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        for e in expected_in_message {
+            assert!(stderr.contains(e), "expected '{e}' in: {stderr}");
+        }
+        let written: Vec<_> = walk(&self.dir.join("out"));
+        assert!(written.is_empty(), "files written despite the error: {written:?}");
+        stderr
+    }
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(dir) {
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.extend(walk(&p));
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn missing_pipeline_file() {
+    let c = Case::new("missing-pipeline");
+    c.fails(&c.dir.join("nope.toml"), &["nope.toml"]);
+}
+
+#[test]
+fn missing_scene_file() {
+    let c = Case::new("missing-scene");
+    let p = c.file("p.toml", pipeline("absent.gltf", ""));
+    c.fails(&p, &["p.toml:2:", "absent.gltf", "does not exist"]);
+}
+
+#[test]
+fn malformed_toml() {
+    let c = Case::new("malformed-toml");
+    let p = c.file("p.toml", "[scene\npath = 3\n");
+    c.fails(&p, &["p.toml:1:"]);
+}
+
+#[test]
+fn unknown_key() {
+    let c = Case::new("unknown-key");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file("p.toml", pipeline("s.gltf", "samples = 4"));
+    c.fails(&p, &["p.toml:7:", "samples"]);
+}
+
+#[test]
+fn wrong_type() {
+    let c = Case::new("wrong-type");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file("p.toml", pipeline("s.gltf", "").replace("width = 8", "width = \"wide\""));
+    c.fails(&p, &["p.toml:4:", "invalid type"]);
+}
+
+#[test]
+fn out_of_range_value() {
+    let c = Case::new("range");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file(
+        "p.toml",
+        pipeline("s.gltf", "[stereo]\nconvergence = -1.0"),
+    );
+    c.fails(&p, &["p.toml:8:", "convergence"]);
+    let p = c.file("p2.toml", pipeline("s.gltf", "").replace("height = 6", "height = 20000"));
+    c.fails(&p, &["p2.toml:5:", "height"]);
+}
+
+#[test]
+fn truncated_glb() {
+    let c = Case::new("truncated-glb");
+    let glb = std::fs::read(common::shared().join("scenes/Box/Box.glb")).unwrap();
+    c.file("s.glb", &glb[..glb.len() / 2]);
+    let p = c.file("p.toml", pipeline("s.glb", ""));
+    c.fails(&p, &["s.glb"]);
+}
+
+#[test]
+fn malformed_gltf_json() {
+    let c = Case::new("malformed-gltf");
+    c.file("s.gltf", "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [");
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    c.fails(&p, &["s.gltf", "not a readable glTF"]);
+}
+
+#[test]
+fn buffer_uri_escaping_the_scene_folder() {
+    let c = Case::new("uri-escape");
+    c.file("secret.bin", [0u8; 36]);
+    c.file(
+        "scene/s.gltf",
+        triangle_gltf(GOOD_TRIANGLE, |g| g["buffers"][0]["uri"] = json!("../secret.bin")),
+    );
+    let p = c.file("p.toml", pipeline("scene/s.gltf", ""));
+    c.fails(&p, &["s.gltf", "buffers[0]", "escapes"]);
+}
+
+#[test]
+fn buffer_uri_that_does_not_exist() {
+    let c = Case::new("uri-missing");
+    c.file(
+        "s.gltf",
+        triangle_gltf(GOOD_TRIANGLE, |g| g["buffers"][0]["uri"] = json!("missing.bin")),
+    );
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    c.fails(&p, &["s.gltf", "buffers[0]", "missing.bin"]);
+}
+
+#[test]
+fn accessor_reading_out_of_bounds() {
+    let c = Case::new("accessor-oob");
+    c.file(
+        "s.gltf",
+        triangle_gltf(GOOD_TRIANGLE, |g| g["accessors"][0]["count"] = json!(30)),
+    );
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    c.fails(&p, &["s.gltf", "meshes[0].primitives[0].attributes.POSITION", "past the end"]);
+}
+
+#[test]
+fn nan_and_infinite_vertex_positions() {
+    for (name, bad) in [("nan", f32::NAN), ("inf", f32::INFINITY)] {
+        let c = Case::new(name);
+        let mut tri = GOOD_TRIANGLE;
+        tri[1][2] = bad;
+        c.file("s.gltf", triangle_gltf(tri, |_| {}));
+        let p = c.file("p.toml", pipeline("s.gltf", ""));
+        c.fails(&p, &["s.gltf", "POSITION", "element 1 is not finite"]);
+    }
+}
+
+#[test]
+fn camera_name_that_does_not_exist() {
+    let c = Case::new("camera");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file("p.toml", pipeline("s.gltf", "").replace("path = \"s.gltf\"", "path = \"s.gltf\"\ncamera = \"Nope\""));
+    c.fails(&p, &["p.toml:3:", "Nope", "Cam"]);
+}
+
+#[test]
+fn output_path_escaping_the_output_directory() {
+    let c = Case::new("out-escape");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file("p.toml", pipeline("s.gltf", "").replace("img_{eye}.png", "../../img_{eye}.png"));
+    c.fails(&p, &["p.toml:10:", "escapes the output directory"]);
+    let p = c.file("p2.toml", pipeline("s.gltf", "").replace("img_{eye}.png", "/tmp/img_{eye}.png"));
+    c.fails(&p, &["p2.toml:10:", "absolute"]);
+}
+
+#[test]
+fn the_valid_triangle_renders() {
+    // The baseline of the cases above: the same files without the defect succeed.
+    let c = Case::new("valid");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(c.dir.join("out"))
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(c.dir.join("out/img_left.png").is_file());
+    assert!(c.dir.join("out/img_right.png").is_file());
+}
