@@ -167,8 +167,10 @@ fn whitted() -> Value {
 
     // 4.6 m back, 1.7 m up, pitched down 12 degrees.
     let half_pitch = -12f32.to_radians() * 0.5;
-    nodes.push(json!({"name": "Camera", "camera": 0, "translation": [0.0, 1.7, 4.6],
-        "rotation": [half_pitch.sin(), 0.0, 0.0, half_pitch.cos()]}));
+    nodes.push(
+        json!({"name": "Camera", "camera": 0, "translation": [0.0, 1.7, 4.6],
+        "rotation": [half_pitch.sin(), 0.0, 0.0, half_pitch.cos()]}),
+    );
     nodes.push(json!({"name": "key light", "translation": [2.5, 5.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
     nodes.push(json!({"name": "fill light", "translation": [-4.0, 3.0, 1.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}));
 

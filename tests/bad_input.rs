@@ -75,7 +75,10 @@ impl Case {
             assert!(stderr.contains(e), "expected '{e}' in: {stderr}");
         }
         let written: Vec<_> = walk(&self.dir.join("out"));
-        assert!(written.is_empty(), "files written despite the error: {written:?}");
+        assert!(
+            written.is_empty(),
+            "files written despite the error: {written:?}"
+        );
         stderr
     }
 }
@@ -127,7 +130,10 @@ fn unknown_key() {
 fn wrong_type() {
     let c = Case::new("wrong-type");
     c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
-    let p = c.file("p.toml", pipeline("s.gltf", "").replace("width = 8", "width = \"wide\""));
+    let p = c.file(
+        "p.toml",
+        pipeline("s.gltf", "").replace("width = 8", "width = \"wide\""),
+    );
     c.fails(&p, &["p.toml:4:", "invalid type"]);
 }
 
@@ -135,12 +141,12 @@ fn wrong_type() {
 fn out_of_range_value() {
     let c = Case::new("range");
     c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
-    let p = c.file(
-        "p.toml",
-        pipeline("s.gltf", "[stereo]\nconvergence = -1.0"),
-    );
+    let p = c.file("p.toml", pipeline("s.gltf", "[stereo]\nconvergence = -1.0"));
     c.fails(&p, &["p.toml:8:", "convergence"]);
-    let p = c.file("p2.toml", pipeline("s.gltf", "").replace("height = 6", "height = 20000"));
+    let p = c.file(
+        "p2.toml",
+        pipeline("s.gltf", "").replace("height = 6", "height = 20000"),
+    );
     c.fails(&p, &["p2.toml:5:", "height"]);
 }
 
@@ -167,7 +173,9 @@ fn buffer_uri_escaping_the_scene_folder() {
     c.file("secret.bin", [0u8; 36]);
     c.file(
         "scene/s.gltf",
-        triangle_gltf(GOOD_TRIANGLE, |g| g["buffers"][0]["uri"] = json!("../secret.bin")),
+        triangle_gltf(GOOD_TRIANGLE, |g| {
+            g["buffers"][0]["uri"] = json!("../secret.bin")
+        }),
     );
     let p = c.file("p.toml", pipeline("scene/s.gltf", ""));
     c.fails(&p, &["s.gltf", "buffers[0]", "escapes"]);
@@ -178,7 +186,9 @@ fn buffer_uri_that_does_not_exist() {
     let c = Case::new("uri-missing");
     c.file(
         "s.gltf",
-        triangle_gltf(GOOD_TRIANGLE, |g| g["buffers"][0]["uri"] = json!("missing.bin")),
+        triangle_gltf(GOOD_TRIANGLE, |g| {
+            g["buffers"][0]["uri"] = json!("missing.bin")
+        }),
     );
     let p = c.file("p.toml", pipeline("s.gltf", ""));
     c.fails(&p, &["s.gltf", "buffers[0]", "missing.bin"]);
@@ -192,7 +202,14 @@ fn accessor_reading_out_of_bounds() {
         triangle_gltf(GOOD_TRIANGLE, |g| g["accessors"][0]["count"] = json!(30)),
     );
     let p = c.file("p.toml", pipeline("s.gltf", ""));
-    c.fails(&p, &["s.gltf", "meshes[0].primitives[0].attributes.POSITION", "past the end"]);
+    c.fails(
+        &p,
+        &[
+            "s.gltf",
+            "meshes[0].primitives[0].attributes.POSITION",
+            "past the end",
+        ],
+    );
 }
 
 #[test]
@@ -211,7 +228,10 @@ fn nan_and_infinite_vertex_positions() {
 fn camera_name_that_does_not_exist() {
     let c = Case::new("camera");
     c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
-    let p = c.file("p.toml", pipeline("s.gltf", "").replace("path = \"s.gltf\"", "path = \"s.gltf\"\ncamera = \"Nope\""));
+    let p = c.file(
+        "p.toml",
+        pipeline("s.gltf", "").replace("path = \"s.gltf\"", "path = \"s.gltf\"\ncamera = \"Nope\""),
+    );
     c.fails(&p, &["p.toml:3:", "Nope", "Cam"]);
 }
 
@@ -219,9 +239,15 @@ fn camera_name_that_does_not_exist() {
 fn output_path_escaping_the_output_directory() {
     let c = Case::new("out-escape");
     c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
-    let p = c.file("p.toml", pipeline("s.gltf", "").replace("img_{eye}.png", "../../img_{eye}.png"));
+    let p = c.file(
+        "p.toml",
+        pipeline("s.gltf", "").replace("img_{eye}.png", "../../img_{eye}.png"),
+    );
     c.fails(&p, &["p.toml:10:", "escapes the output directory"]);
-    let p = c.file("p2.toml", pipeline("s.gltf", "").replace("img_{eye}.png", "/tmp/img_{eye}.png"));
+    let p = c.file(
+        "p2.toml",
+        pipeline("s.gltf", "").replace("img_{eye}.png", "/tmp/img_{eye}.png"),
+    );
     c.fails(&p, &["p2.toml:10:", "absolute"]);
 }
 
@@ -237,7 +263,11 @@ fn the_valid_triangle_renders() {
         .arg(&p)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(c.dir.join("out/img_left.png").is_file());
     assert!(c.dir.join("out/img_right.png").is_file());
 }

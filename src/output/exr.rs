@@ -162,13 +162,19 @@ pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
     }
     views
         .into_iter()
-        .map(|PartialView { name, planes: [r, g, b], size: (w, h) }| match (r, g, b) {
-            (Some(r), Some(g), Some(b)) => Ok((name, Image::from_channels(w, h, &r, &g, &b))),
-            _ => Err(Error::input(
-                path,
-                format!("view '{name}' lacks one of the R, G, B channels"),
-            )),
-        })
+        .map(
+            |PartialView {
+                 name,
+                 planes: [r, g, b],
+                 size: (w, h),
+             }| match (r, g, b) {
+                (Some(r), Some(g), Some(b)) => Ok((name, Image::from_channels(w, h, &r, &g, &b))),
+                _ => Err(Error::input(
+                    path,
+                    format!("view '{name}' lacks one of the R, G, B channels"),
+                )),
+            },
+        )
         .collect()
 }
 

@@ -285,6 +285,12 @@ impl LoadedPipeline {
         let scene = Scene::load(&scene_path)?;
         let mut warnings = scene.warnings.clone();
         let camera_instance = resolve_camera(&spec, &scene, &mut warnings).map_err(at)?;
+        if !scene.nodes.iter().any(|n| n.light.is_some()) {
+            warnings.push(format!(
+                "{}: the scene has no lights; using a head-light at the camera",
+                scene_path.display()
+            ));
+        }
         check_animation(&spec, &scene, &mut warnings).map_err(at)?;
         Ok(LoadedPipeline {
             file: file.to_path_buf(),
