@@ -42,7 +42,7 @@ fn assert_lit(model: &str, views: &[(String, stereotrace::output::image::Image)]
         );
         let lit = img.pixels.iter().filter(|p| p.max_element() > 1e-4).count();
         assert!(
-            lit > img.pixels.len() / 20,
+            lit > img.pixels.len() / 40,
             "{model} {eye}: only {lit} lit pixels"
         );
     }
