@@ -90,8 +90,14 @@ mod tests {
             let x = i as f32 / 100.0;
             assert!((srgb_to_linear(linear_to_srgb(x)) - x).abs() < 1e-5);
         }
-        // Linear 0.214 is sRGB 0.5 (code value 128).
-        assert_eq!(quantize(linear_to_srgb(0.214_041)), 128);
+        // Linear 0.214041 is sRGB 0.5; every code value survives decode + encode.
+        assert!((linear_to_srgb(0.214_041) - 0.5).abs() < 1e-5);
+        for code in 0..=255u8 {
+            assert_eq!(
+                quantize(linear_to_srgb(srgb_to_linear(code as f32 / 255.0))),
+                code
+            );
+        }
     }
 
     #[test]
