@@ -1,8 +1,9 @@
-//! kd-tree construction. Three split strategies share one recursive builder: `center` (middle of the
-//! node's longest axis), `median` (object median on that axis) and `sah` (the surface area
-//! heuristic with an exact sweep over the split candidates). Triangles that straddle a split are
-//! clipped to each child's box before their bounds are used further down ("perfect splits",
-//! Havran 2000; Wald & Havran 2006), which keeps deep nodes tight around long triangles.
+//! kd-tree construction: parameters, the node layout, and the builders. `sah` uses the
+//! O(N log N) event sweep of `sah.rs`; `center` (middle of the node's longest axis) and `median`
+//! (object median on that axis) use the simple recursive builder here, which also hosts the
+//! quadratic SAH search the literature starts from, kept as the test oracle of the fast build.
+//! Triangles that straddle a split are clipped to each child's box before their bounds are used
+//! further down ("perfect splits", Havran 2000; Wald & Havran 2006).
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -28,6 +29,29 @@ pub struct BuildParams {
     pub empty_bonus: f32,
     /// Center and median stop at this many triangles (they have no cost model).
     pub leaf_size: usize,
+}
+
+/// The SAH cost of splitting `b` at `pos` on `axis` with `nb` and `na` references on each side:
+/// K_T + lambda * K_I * (P_below * nb + P_above * na), lambda = 1 - empty_bonus when a side is
+/// empty. Both SAH builders call exactly this, so their costs agree bit for bit.
+pub(super) fn sah_cost(
+    p: &BuildParams,
+    b: &Aabb,
+    area: f32,
+    axis: usize,
+    pos: f32,
+    nb: usize,
+    na: usize,
+) -> f32 {
+    let (below, above) = b.split(axis, pos);
+    let pb = below.surface_area() / area;
+    let pa = above.surface_area() / area;
+    let bonus = if nb == 0 || na == 0 {
+        1.0 - p.empty_bonus
+    } else {
+        1.0
+    };
+    p.traversal_cost + bonus * p.intersection_cost * (pb * nb as f32 + pa * na as f32)
 }
 
 impl Default for BuildParams {
@@ -125,14 +149,14 @@ pub struct Node {
 const _: () = assert!(std::mem::size_of::<Node>() == 8);
 
 impl Node {
-    fn leaf(first: u32, count: u32) -> Node {
+    pub(super) fn leaf(first: u32, count: u32) -> Node {
         Node {
             a: first,
             b: (count << 2) | 3,
         }
     }
 
-    fn inner(axis: usize, split: f32, above_offset: u32) -> Node {
+    pub(super) fn inner(axis: usize, split: f32, above_offset: u32) -> Node {
         Node {
             a: split.to_bits(),
             b: (above_offset << 2) | axis as u32,
@@ -176,24 +200,94 @@ pub struct KdTree {
 }
 
 /// A triangle reference during the build with its bounds clipped to the current node.
-#[derive(Clone, Copy)]
-struct Item {
-    prim: u32,
-    bounds: Aabb,
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Item {
+    pub prim: u32,
+    pub bounds: Aabb,
 }
 
-struct Subtree {
-    nodes: Vec<Node>,
-    refs: Vec<u32>,
+/// The tree as the builders make it; flattened once into the compact layout.
+pub(super) enum BuildNode {
+    Leaf(Vec<u32>),
+    Inner {
+        split: Split,
+        below: Box<BuildNode>,
+        above: Box<BuildNode>,
+    },
+}
+
+/// A chosen split: axis, position, and which side triangles lying in the plane go to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Split {
+    pub axis: usize,
+    pub pos: f32,
+    pub planar_below: bool,
 }
 
 /// Subtrees with more references than this are built on another rayon task.
-const PARALLEL_THRESHOLD: usize = 4096;
+pub(super) const PARALLEL_THRESHOLD: usize = 4096;
 /// Hard cap so the traversal stack (one entry per level) has a fixed size.
 pub const MAX_DEPTH: u32 = 60;
 
+/// Which side of a split a reference goes to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Side {
+    Below,
+    Above,
+    Both,
+}
+
+/// The side of a reference with bounds `[lo, hi]` on the split axis (the same rule for every builder).
+#[inline]
+pub(super) fn side_of(lo: f32, hi: f32, s: &Split) -> Side {
+    if lo == hi && lo == s.pos {
+        if s.planar_below {
+            Side::Below
+        } else {
+            Side::Above
+        }
+    } else if hi <= s.pos {
+        Side::Below
+    } else if lo >= s.pos {
+        Side::Above
+    } else {
+        Side::Both
+    }
+}
+
+/// The two clipped references of a triangle straddling a split (either may vanish).
+pub(super) fn clip_straddler(
+    tri: &[Vec3; 3],
+    prim: u32,
+    bounds: &Aabb,
+    below_box: &Aabb,
+    above_box: &Aabb,
+) -> [Option<Item>; 2] {
+    [below_box, above_box].map(|child| {
+        let b = clip_bounds(tri, &bounds.intersection(child));
+        (!b.is_empty()).then_some(Item { prim, bounds: b })
+    })
+}
+
 impl KdTree {
     pub fn build(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> KdTree {
+        Self::build_with(triangles, params, false)
+    }
+
+    /// The SAH tree built with the quadratic split search (every candidate plane counted against
+    /// every reference). Slow; the oracle the O(N log N) build is tested against.
+    pub fn build_quadratic_sah(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> KdTree {
+        Self::build_with(
+            triangles,
+            BuildParams {
+                method: SplitMethod::Sah,
+                ..params
+            },
+            true,
+        )
+    }
+
+    fn build_with(triangles: Vec<[Vec3; 3]>, params: BuildParams, quadratic: bool) -> KdTree {
         let start = Instant::now();
         let items: Vec<Item> = triangles
             .iter()
@@ -213,15 +307,20 @@ impl KdTree {
         });
         let n = items.len().max(1) as f32;
         let max_depth = ((8.0 + 1.3 * n.log2()).round() as u32).min(MAX_DEPTH);
-        let builder = Builder {
-            params,
-            triangles: &triangles,
-            max_depth,
+        let root = if params.method == SplitMethod::Sah && !quadratic {
+            super::sah::build(&triangles, items, bounds, &params, max_depth)
+        } else {
+            let builder = Builder {
+                params,
+                triangles: &triangles,
+                max_depth,
+            };
+            builder.build(items, bounds, 0)
         };
-        let sub = builder.build(items, bounds, 0);
+        let (nodes, prim_refs) = flatten(root);
         KdTree {
-            nodes: sub.nodes,
-            prim_refs: sub.refs,
+            nodes,
+            prim_refs,
             triangles,
             bounds,
             params,
@@ -232,6 +331,55 @@ impl KdTree {
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
+
+    /// The tree's inner nodes and leaves in layout order, for comparing trees in tests: inner
+    /// nodes as (axis, split, above offset), leaves as their sorted primitive lists.
+    pub fn shape(&self) -> Vec<(usize, f32, usize, Vec<u32>)> {
+        self.nodes
+            .iter()
+            .map(|n| {
+                if n.is_leaf() {
+                    let mut prims = self.prim_refs[n.leaf_range()].to_vec();
+                    prims.sort_unstable();
+                    (3, 0.0, 0, prims)
+                } else {
+                    (n.axis(), n.split(), n.above_offset(), Vec::new())
+                }
+            })
+            .collect()
+    }
+}
+
+/// Depth-first layout: the below child follows its parent, the above child's offset is stored.
+fn flatten(root: BuildNode) -> (Vec<Node>, Vec<u32>) {
+    let mut nodes = Vec::new();
+    let mut refs = Vec::new();
+    // (node, index of the parent whose above-offset waits for this node)
+    let mut stack: Vec<(BuildNode, Option<usize>)> = vec![(root, None)];
+    while let Some((node, parent)) = stack.pop() {
+        let here = nodes.len();
+        if let Some(p) = parent {
+            let Node { a, .. } = nodes[p];
+            let axis = nodes[p].axis();
+            nodes[p] = Node::inner(axis, f32::from_bits(a), (here - p) as u32);
+        }
+        match node {
+            BuildNode::Leaf(prims) => {
+                nodes.push(Node::leaf(refs.len() as u32, prims.len() as u32));
+                refs.extend(prims);
+            }
+            BuildNode::Inner {
+                split,
+                below,
+                above,
+            } => {
+                nodes.push(Node::inner(split.axis, split.pos, 0));
+                stack.push((*above, Some(here)));
+                stack.push((*below, None));
+            }
+        }
+    }
+    (nodes, refs)
 }
 
 struct Builder<'a> {
@@ -240,27 +388,19 @@ struct Builder<'a> {
     max_depth: u32,
 }
 
-/// A chosen split: axis, position, and which side triangles lying in the plane go to.
-#[derive(Clone, Copy, Debug)]
-struct Split {
-    axis: usize,
-    pos: f32,
-    planar_below: bool,
-}
-
 impl Builder<'_> {
-    fn build(&self, items: Vec<Item>, node_box: Aabb, depth: u32) -> Subtree {
+    fn build(&self, items: Vec<Item>, node_box: Aabb, depth: u32) -> BuildNode {
         let split = if depth >= self.max_depth || items.len() <= 1 {
             None
         } else {
             match self.params.method {
-                SplitMethod::Sah => self.sah_split(&items, &node_box),
+                SplitMethod::Sah => self.quadratic_sah_split(&items, &node_box),
                 SplitMethod::Center => self.spatial_split(&items, &node_box, false),
                 SplitMethod::Median => self.spatial_split(&items, &node_box, true),
             }
         };
         let Some(split) = split else {
-            return leaf(items);
+            return BuildNode::Leaf(items.iter().map(|it| it.prim).collect());
         };
         let (below_box, above_box) = node_box.split(split.axis, split.pos);
         let (below, above) = self.partition(items, &split, &below_box, &above_box);
@@ -275,106 +415,63 @@ impl Builder<'_> {
                 self.build(above, above_box, depth + 1),
             )
         };
-        let mut nodes = Vec::with_capacity(1 + lo.nodes.len() + hi.nodes.len());
-        nodes.push(Node::inner(
-            split.axis,
-            split.pos,
-            1 + lo.nodes.len() as u32,
-        ));
-        nodes.extend_from_slice(&lo.nodes);
-        let shift = lo.refs.len() as u32;
-        nodes.extend(hi.nodes.iter().map(|n| {
-            if n.is_leaf() {
-                Node {
-                    a: n.a + shift,
-                    b: n.b,
-                }
-            } else {
-                *n
-            }
-        }));
-        let mut refs = lo.refs;
-        refs.extend_from_slice(&hi.refs);
-        Subtree { nodes, refs }
+        BuildNode::Inner {
+            split,
+            below: Box::new(lo),
+            above: Box::new(hi),
+        }
     }
 
-    /// The cheapest SAH split over all three axes, or `None` when a leaf is cheaper.
-    fn sah_split(&self, items: &[Item], node_box: &Aabb) -> Option<Split> {
+    /// The quadratic SAH search: for every candidate plane (every distinct bound of a reference,
+    /// strictly inside the node) count the references on each side by looping over all of them.
+    /// Candidates are visited in the order the sweep visits them (axis, then position, then
+    /// planar-below before planar-above) and only a strictly cheaper one replaces the best, so
+    /// both searches break ties identically.
+    fn quadratic_sah_split(&self, items: &[Item], node_box: &Aabb) -> Option<Split> {
         let area = node_box.surface_area();
         if area <= 0.0 {
             return None;
         }
-        let n = items.len();
-        let leaf_cost = self.params.intersection_cost * n as f32;
+        let leaf_cost = self.params.intersection_cost * items.len() as f32;
         let mut best: Option<(f32, Split)> = None;
-        // Event kinds sort as end < planar < start at equal positions (Wald & Havran's order), so
-        // a sweep sees the triangles ending at a plane before those starting there.
-        let mut events: Vec<(f32, u8)> = Vec::with_capacity(2 * n);
         for axis in 0..3 {
-            events.clear();
-            for it in items {
-                let (lo, hi) = (it.bounds.min[axis], it.bounds.max[axis]);
-                if lo == hi {
-                    events.push((lo, 1));
-                } else {
-                    events.push((lo, 2));
-                    events.push((hi, 0));
+            let mut candidates: Vec<f32> = items
+                .iter()
+                .flat_map(|it| [it.bounds.min[axis], it.bounds.max[axis]])
+                .collect();
+            candidates.sort_unstable_by(f32::total_cmp);
+            candidates.dedup();
+            for pos in candidates {
+                if !(pos > node_box.min[axis] && pos < node_box.max[axis]) {
+                    continue;
                 }
-            }
-            events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let (mut n_below, mut n_above) = (0usize, n);
-            let mut i = 0;
-            while i < events.len() {
-                let pos = events[i].0;
-                let count = |kind: u8, i: &mut usize| {
-                    let mut c = 0;
-                    while *i < events.len() && events[*i].0 == pos && events[*i].1 == kind {
-                        c += 1;
-                        *i += 1;
-                    }
-                    c
-                };
-                let ending = count(0, &mut i);
-                let planar = count(1, &mut i);
-                let starting = count(2, &mut i);
-                n_above -= planar + ending;
-                if pos > node_box.min[axis] && pos < node_box.max[axis] {
-                    for planar_below in [true, false] {
-                        let (nb, na) = if planar_below {
-                            (n_below + planar, n_above)
-                        } else {
-                            (n_below, n_above + planar)
-                        };
-                        let cost = self.sah_cost(node_box, area, axis, pos, nb, na);
-                        if best.is_none_or(|(c, _)| cost < c) {
-                            best = Some((
-                                cost,
-                                Split {
-                                    axis,
-                                    pos,
-                                    planar_below,
-                                },
-                            ));
-                        }
+                let below = items.iter().filter(|it| it.bounds.min[axis] < pos).count();
+                let above = items.iter().filter(|it| it.bounds.max[axis] > pos).count();
+                let planar = items
+                    .iter()
+                    .filter(|it| it.bounds.min[axis] == pos && it.bounds.max[axis] == pos)
+                    .count();
+                for planar_below in [true, false] {
+                    let (nb, na) = if planar_below {
+                        (below + planar, above)
+                    } else {
+                        (below, above + planar)
+                    };
+                    let cost = sah_cost(&self.params, node_box, area, axis, pos, nb, na);
+                    if best.is_none_or(|(c, _)| cost < c) {
+                        best = Some((
+                            cost,
+                            Split {
+                                axis,
+                                pos,
+                                planar_below,
+                            },
+                        ));
                     }
                 }
-                n_below += starting + planar;
             }
         }
         best.filter(|(cost, _)| *cost < leaf_cost).map(|(_, s)| s)
-    }
-
-    fn sah_cost(&self, b: &Aabb, area: f32, axis: usize, pos: f32, nb: usize, na: usize) -> f32 {
-        let (below, above) = b.split(axis, pos);
-        let pb = below.surface_area() / area;
-        let pa = above.surface_area() / area;
-        let bonus = if nb == 0 || na == 0 {
-            1.0 - self.params.empty_bonus
-        } else {
-            1.0
-        };
-        self.params.traversal_cost
-            + bonus * self.params.intersection_cost * (pb * nb as f32 + pa * na as f32)
     }
 
     /// Center or median split on the longest axis; `None` when the node is small enough, or when
@@ -420,38 +517,18 @@ impl Builder<'_> {
         let mut below = Vec::new();
         let mut above = Vec::new();
         for it in items {
-            let (lo, hi) = (it.bounds.min[s.axis], it.bounds.max[s.axis]);
-            if lo == hi && lo == s.pos {
-                if s.planar_below {
-                    below.push(it);
-                } else {
-                    above.push(it);
-                }
-            } else if hi <= s.pos {
-                below.push(it);
-            } else if lo >= s.pos {
-                above.push(it);
-            } else {
-                let tri = &self.triangles[it.prim as usize];
-                for (child_box, out) in [(below_box, &mut below), (above_box, &mut above)] {
-                    let clipped = clip_bounds(tri, &it.bounds.intersection(child_box));
-                    if !clipped.is_empty() {
-                        out.push(Item {
-                            prim: it.prim,
-                            bounds: clipped,
-                        });
-                    }
+            match side_of(it.bounds.min[s.axis], it.bounds.max[s.axis], s) {
+                Side::Below => below.push(it),
+                Side::Above => above.push(it),
+                Side::Both => {
+                    let tri = &self.triangles[it.prim as usize];
+                    let [b, a] = clip_straddler(tri, it.prim, &it.bounds, below_box, above_box);
+                    below.extend(b);
+                    above.extend(a);
                 }
             }
         }
         (below, above)
-    }
-}
-
-fn leaf(items: Vec<Item>) -> Subtree {
-    Subtree {
-        nodes: vec![Node::leaf(0, items.len() as u32)],
-        refs: items.iter().map(|it| it.prim).collect(),
     }
 }
 
