@@ -4,6 +4,7 @@
 //! `scene` (pose at time t) -> `accel` (kd-tree) -> `render` (trace both eyes) -> `output`.
 
 pub mod accel;
+pub mod bench;
 pub mod compare;
 pub mod error;
 pub mod info;

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use stereotrace::accel::SplitMethod;
 use stereotrace::pipeline::LoadedPipeline;
 use stereotrace::pipeline::run::{RunOptions, run};
-use stereotrace::{Error, info};
+use stereotrace::{Error, bench, info};
 
 #[derive(Parser)]
 #[command(
@@ -41,6 +41,9 @@ enum Command {
     },
     /// Validate a pipeline and its scene without rendering.
     Check { pipeline: PathBuf },
+    /// Speed measurements.
+    #[command(subcommand)]
+    Bench(BenchCommand),
     /// Describe a glTF scene.
     Info {
         scene: PathBuf,
@@ -56,11 +59,61 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// kd-tree build time and ray throughput per split strategy, with baselines on identical rays.
+    Accel {
+        /// glTF files, or generated:N for a generated mesh of about N triangles.
+        #[arg(required = true)]
+        scenes: Vec<String>,
+        /// Split strategies to measure.
+        #[arg(
+            long,
+            value_enum,
+            value_delimiter = ',',
+            default_value = "center,median,sah"
+        )]
+        split: Vec<SplitArg>,
+        /// Runs per measurement; the median is reported.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Write the table as CSV.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Replay primary rays from a file (u64 count, then 7 little-endian f32 per ray:
+        /// origin, direction, t_max) instead of the camera's.
+        #[arg(long)]
+        rays: Option<PathBuf>,
+        /// Replay shadow rays (any-hit) from a file in the same format.
+        #[arg(long)]
+        shadow_rays: Option<PathBuf>,
+        /// Write each scene's primary and shadow rays into this folder in the replay format.
+        #[arg(long)]
+        save_rays: Option<PathBuf>,
+        /// Camera rays per side of the square film.
+        #[arg(long, default_value_t = 512)]
+        film: u32,
+        /// Worker threads (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+}
+
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum SplitArg {
     Center,
     Median,
     Sah,
+}
+
+impl From<SplitArg> for SplitMethod {
+    fn from(s: SplitArg) -> SplitMethod {
+        match s {
+            SplitArg::Center => SplitMethod::Center,
+            SplitArg::Median => SplitMethod::Median,
+            SplitArg::Sah => SplitMethod::Sah,
+        }
+    }
 }
 
 fn parse_range(s: &str) -> Result<(u32, u32), String> {
@@ -145,6 +198,36 @@ fn execute(command: Command) -> Result<(), Error> {
             );
             Ok(())
         }
+        Command::Bench(BenchCommand::Accel {
+            scenes,
+            split,
+            repeat,
+            csv,
+            rays,
+            shadow_rays,
+            save_rays,
+            film,
+            threads,
+        }) => {
+            let opts = bench::AccelBenchOptions {
+                scenes,
+                splits: split.into_iter().map(SplitMethod::from).collect(),
+                repeat,
+                csv,
+                rays,
+                shadow_rays,
+                film,
+                brute_force_budget: 2e9,
+                save_rays,
+            };
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| Error::input(std::path::Path::new("--threads"), e.to_string()))?;
+            println!("{}", bench::CSV_HEADER);
+            pool.install(|| bench::bench_accel(&opts, |row| println!("{}", row.csv())))?;
+            Ok(())
+        }
         Command::Info {
             scene,
             accel,
@@ -152,12 +235,7 @@ fn execute(command: Command) -> Result<(), Error> {
             json,
         } => {
             let s = stereotrace::scene::Scene::load(&scene)?;
-            let method = match split {
-                SplitArg::Center => SplitMethod::Center,
-                SplitArg::Median => SplitMethod::Median,
-                SplitArg::Sah => SplitMethod::Sah,
-            };
-            let report = info::scene_info(&s, accel.then_some(method));
+            let report = info::scene_info(&s, accel.then_some(split.into()));
             if json {
                 println!(
                     "{}",

@@ -539,38 +539,44 @@ fn clip_bounds(tri: &[Vec3; 3], b: &Aabb) -> Aabb {
     if b.is_empty() {
         return Aabb::EMPTY;
     }
-    let mut poly: Vec<Vec3> = tri.to_vec();
-    let mut next = Vec::with_capacity(9);
+    // A triangle clipped by six planes has at most nine vertices: fixed arrays, no allocation.
+    let mut poly = [Vec3::ZERO; 9];
+    let mut next = [Vec3::ZERO; 9];
+    poly[..3].copy_from_slice(tri);
+    let mut len = 3;
     for axis in 0..3 {
         for (plane, keep_above) in [(b.min[axis], true), (b.max[axis], false)] {
-            next.clear();
-            for i in 0..poly.len() {
-                let p = poly[i];
-                let q = poly[(i + 1) % poly.len()];
-                let inside = |v: Vec3| {
-                    if keep_above {
-                        v[axis] >= plane
-                    } else {
-                        v[axis] <= plane
-                    }
-                };
-                if inside(p) {
-                    next.push(p);
+            let inside = |v: Vec3| {
+                if keep_above {
+                    v[axis] >= plane
+                } else {
+                    v[axis] <= plane
                 }
-                if inside(p) != inside(q) {
+            };
+            let mut out = 0;
+            for i in 0..len {
+                let p = poly[i];
+                let q = poly[(i + 1) % len];
+                if inside(p) {
+                    next[out] = p;
+                    out += 1;
+                }
+                if inside(p) != inside(q) && out < 9 {
                     let t = (plane - p[axis]) / (q[axis] - p[axis]);
                     let mut v = p + (q - p) * t;
                     v[axis] = plane;
-                    next.push(v);
+                    next[out] = v;
+                    out += 1;
                 }
             }
             std::mem::swap(&mut poly, &mut next);
-            if poly.is_empty() {
+            len = out;
+            if len == 0 {
                 return *b;
             }
         }
     }
-    Aabb::of_points(&poly).intersection(b)
+    Aabb::of_points(&poly[..len]).intersection(b)
 }
 
 #[cfg(test)]

@@ -26,6 +26,17 @@ const START: u8 = 2;
 /// Above this many events a node sweeps its three axes on separate rayon tasks.
 const PARALLEL_SWEEP: usize = 1 << 16;
 
+/// Side codes in the per-thread classification array; zero means "straddles" (or unvisited).
+const MARK_BELOW: u8 = 1;
+const MARK_ABOVE: u8 = 2;
+
+thread_local! {
+    /// One byte per triangle of the scene: which side of the current split a reference lies on.
+    /// A node classifies and splits its events on one thread without yielding to rayon, and
+    /// clears what it marked before returning, so each thread can keep one array for every node.
+    static SIDES: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Event {
     pos: f32,
@@ -96,9 +107,9 @@ impl Ctx<'_> {
         };
         let Some(split) = split else {
             // Each reference has exactly one START or PLANAR event on axis 0.
-            let prims = events
+            let axis0 = events.partition_point(|e| e.axis == 0);
+            let prims = events[..axis0]
                 .iter()
-                .take_while(|e| e.axis == 0)
                 .filter(|e| e.kind != END)
                 .map(|e| e.prim)
                 .collect();
@@ -216,40 +227,58 @@ impl Ctx<'_> {
     ) -> ((Vec<Event>, usize), (Vec<Event>, usize)) {
         // Classify from the split axis alone: a reference ending at or before the plane is below,
         // one starting at or after it is above, planar ones follow the split; the rest straddle.
-        let mut side: FxHashMap<u32, Side> = FxHashMap::default();
-        side.reserve(n);
-        for e in events.iter().filter(|e| e.axis as usize == s.axis) {
-            let classified = match e.kind {
-                END if e.pos <= s.pos => Some(Side::Below),
-                START if e.pos >= s.pos => Some(Side::Above),
-                PLANAR => Some(side_of(e.pos, e.pos, s)),
-                _ => None,
-            };
-            if let Some(c) = classified {
-                side.insert(e.prim, c);
-            }
-        }
-        let mut below = Vec::with_capacity(events.len());
-        let mut above = Vec::with_capacity(events.len());
+        let lo = events.partition_point(|e| (e.axis as usize) < s.axis);
+        let hi = events.partition_point(|e| (e.axis as usize) <= s.axis);
+        let axis_events = &events[lo..hi];
+        let mark = |e: &Event| match e.kind {
+            END if e.pos <= s.pos => MARK_BELOW,
+            START if e.pos >= s.pos => MARK_ABOVE,
+            PLANAR => match side_of(e.pos, e.pos, s) {
+                Side::Below => MARK_BELOW,
+                _ => MARK_ABOVE,
+            },
+            _ => 0,
+        };
+        let mut below = Vec::new();
+        let mut above = Vec::new();
         let mut straddlers: FxHashMap<u32, Aabb> = FxHashMap::default();
-        for e in events {
-            match side.get(&e.prim).copied().unwrap_or(Side::Both) {
-                Side::Below => below.push(e),
-                Side::Above => above.push(e),
-                Side::Both => {
-                    let b = straddlers.entry(e.prim).or_insert(Aabb::EMPTY);
-                    let axis = e.axis as usize;
-                    if e.kind != END {
-                        b.min[axis] = e.pos;
-                    }
-                    if e.kind != START {
-                        b.max[axis] = e.pos;
+        let (mut below_only, mut above_only) = (0, 0);
+        SIDES.with_borrow_mut(|sides| {
+            if sides.len() < self.triangles.len() {
+                sides.resize(self.triangles.len(), 0);
+            }
+            for e in axis_events {
+                let m = mark(e);
+                if m != 0 {
+                    sides[e.prim as usize] = m;
+                    below_only += (m == MARK_BELOW) as usize;
+                    above_only += (m == MARK_ABOVE) as usize;
+                }
+            }
+            // A reference has at most six events (two per axis).
+            below.reserve_exact((6 * below_only).min(events.len()));
+            above.reserve_exact((6 * above_only).min(events.len()));
+            for e in &events {
+                match sides[e.prim as usize] {
+                    MARK_BELOW => below.push(*e),
+                    MARK_ABOVE => above.push(*e),
+                    _ => {
+                        let b = straddlers.entry(e.prim).or_insert(Aabb::EMPTY);
+                        let axis = e.axis as usize;
+                        if e.kind != END {
+                            b.min[axis] = e.pos;
+                        }
+                        if e.kind != START {
+                            b.max[axis] = e.pos;
+                        }
                     }
                 }
             }
-        }
-        let below_only = side.values().filter(|&&v| v == Side::Below).count();
-        let above_only = side.values().filter(|&&v| v == Side::Above).count();
+            for e in axis_events {
+                sides[e.prim as usize] = 0;
+            }
+        });
+        let _ = n;
         let mut new_below = Vec::new();
         let mut new_above = Vec::new();
         for (&prim, bounds) in &straddlers {

@@ -1,0 +1,210 @@
+//! The kd-tree against the brute-force oracle: every split strategy must return the same closest
+//! hit distance as testing every triangle, and any-hit must agree with closest-hit, on random
+//! soups, degenerate inputs, extreme coordinate scales and real meshes. The build must not depend
+//! on the thread count.
+
+mod common;
+
+use glam::Vec3;
+use stereotrace::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod};
+use stereotrace::scene::{Scene, pose};
+
+const METHODS: [SplitMethod; 3] = [SplitMethod::Sah, SplitMethod::Center, SplitMethod::Median];
+
+struct Rng(u64);
+impl Rng {
+    fn f(&mut self) -> f32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
+    }
+    fn v(&mut self) -> Vec3 {
+        Vec3::new(self.f(), self.f(), self.f())
+    }
+}
+
+/// Rays from random points around the bounds toward random points inside them.
+fn rays_through(tris: &[[Vec3; 3]], n: usize, rng: &mut Rng) -> Vec<Ray> {
+    let (lo, hi) = tris
+        .iter()
+        .flatten()
+        .fold((Vec3::MAX, Vec3::MIN), |(a, b), &p| (a.min(p), b.max(p)));
+    let size = (hi - lo).max(Vec3::splat(1e-6));
+    (0..n)
+        .map(|_| {
+            let from = lo - size * 0.5 + rng.v() * size * 2.0;
+            let to = lo + rng.v() * size;
+            Ray::new(from, to - from)
+        })
+        .collect()
+}
+
+fn check(name: &str, tris: Vec<[Vec3; 3]>, rays: &[Ray]) {
+    let brute = BruteForce {
+        triangles: tris.clone(),
+    };
+    let expected: Vec<Option<f32>> = rays
+        .iter()
+        .map(|r| brute.closest_hit(r, f32::INFINITY).map(|h| h.t))
+        .collect();
+    for method in METHODS {
+        let tree = KdTree::build(tris.clone(), BuildParams::with_method(method));
+        for (r, want) in rays.iter().zip(&expected) {
+            let got = tree.closest_hit(r, f32::INFINITY);
+            assert_eq!(
+                got.map(|h| h.t),
+                *want,
+                "{name} {method:?}: closest hit differs for {r:?}"
+            );
+            if let Some(h) = got {
+                // The reported triangle really is hit at that distance.
+                let single = BruteForce {
+                    triangles: vec![tris[h.prim as usize]],
+                };
+                assert_eq!(single.closest_hit(r, f32::INFINITY).map(|x| x.t), Some(h.t));
+            }
+            assert_eq!(
+                tree.any_hit(r, f32::INFINITY),
+                want.is_some(),
+                "{name} {method:?}: any-hit disagrees"
+            );
+            if let Some(t) = want {
+                // Any-hit within a limit just short of the hit sees nothing closer.
+                let closer = brute.closest_hit(r, t * 0.999).is_some();
+                assert_eq!(
+                    tree.any_hit(r, t * 0.999),
+                    closer,
+                    "{name} {method:?}: any-hit with t_max"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn random_soups() {
+    let mut rng = Rng(11);
+    let tris: Vec<[Vec3; 3]> = (0..3000)
+        .map(|_| {
+            let c = rng.v() * 20.0;
+            [c, c + rng.v() - 0.5, c + rng.v() - 0.5]
+        })
+        .collect();
+    let rays = rays_through(&tris, 3000, &mut rng);
+    check("random soup", tris, &rays);
+}
+
+#[test]
+fn zero_area_collinear_and_coincident_triangles() {
+    let mut rng = Rng(5);
+    let mut tris = Vec::new();
+    for _ in 0..300 {
+        let a = rng.v() * 5.0;
+        let d = rng.v();
+        tris.push([a, a, a]); // a point
+        tris.push([a, a + d, a + d * 2.0]); // collinear
+    }
+    tris.extend(std::iter::repeat_n(
+        [Vec3::ZERO, Vec3::X * 2.0, Vec3::Y * 2.0],
+        3000,
+    )); // coincident
+    tris.push([
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(3.0, 0.0, 1.0),
+        Vec3::new(0.0, 3.0, 1.0),
+    ]);
+    let rays = rays_through(&tris, 1500, &mut rng);
+    check("degenerate", tris, &rays);
+}
+
+#[test]
+fn axis_aligned_planes_exactly_on_candidate_splits_and_axis_parallel_rays() {
+    let mut tris = Vec::new();
+    for i in 0..12 {
+        for j in 0..12 {
+            let (x, y) = (i as f32, j as f32);
+            tris.push([
+                Vec3::new(x, y, 0.0),
+                Vec3::new(x + 1.0, y, 0.0),
+                Vec3::new(x, y + 1.0, 0.0),
+            ]);
+            tris.push([
+                Vec3::new(x, 0.0, y),
+                Vec3::new(x, 1.0, y),
+                Vec3::new(x, 0.0, y + 1.0),
+            ]);
+            tris.push([
+                Vec3::new(0.0, x, y),
+                Vec3::new(0.0, x + 1.0, y),
+                Vec3::new(0.0, x, y + 1.0),
+            ]);
+        }
+    }
+    let mut rays = Vec::new();
+    for i in 0..60 {
+        let f = i as f32 * 0.2;
+        for (o, d) in [
+            (Vec3::new(f, 0.5, 5.0), Vec3::NEG_Z),
+            (Vec3::new(f, 0.5, -5.0), Vec3::Z),
+            (Vec3::new(-3.0, 0.5, f), Vec3::X),
+            (Vec3::new(20.0, f, 0.5), Vec3::NEG_X),
+            (Vec3::new(f, 0.0, 0.5), Vec3::Y), // starts in a plane, runs along it
+            (Vec3::new(f.floor(), 3.0, 0.25), Vec3::new(0.0, -1.0, 0.0)),
+        ] {
+            rays.push(Ray::new(o, d));
+        }
+    }
+    check("planes", tris, &rays);
+}
+
+#[test]
+fn coordinates_from_micrometres_to_thousands_of_kilometres() {
+    for scale in [1e-6f32, 1e-3, 1.0, 1e3, 1e6] {
+        let mut rng = Rng(77);
+        let tris: Vec<[Vec3; 3]> = (0..800)
+            .map(|_| {
+                let c = rng.v() * 10.0;
+                [
+                    c * scale,
+                    (c + rng.v() - 0.5) * scale,
+                    (c + rng.v() - 0.5) * scale,
+                ]
+            })
+            .collect();
+        let rays = rays_through(&tris, 800, &mut rng);
+        check(&format!("scale {scale}"), tris, &rays);
+    }
+}
+
+#[test]
+fn real_meshes() {
+    for model in ["StanfordBunny/bunny_res4.glb", "Duck/Duck.glb"] {
+        let scene = Scene::load(&common::shared().join("scenes").join(model)).unwrap();
+        let posed = pose::pose(&scene, &pose::rest_locals(&scene));
+        let g = &posed.geometry;
+        let tris: Vec<[Vec3; 3]> = (0..g.triangles.len()).map(|i| g.triangle(i)).collect();
+        let rays = rays_through(&tris, 2000, &mut Rng(3));
+        check(model, tris, &rays);
+    }
+}
+
+#[test]
+fn the_tree_does_not_depend_on_the_thread_count() {
+    let mut rng = Rng(21);
+    let tris: Vec<[Vec3; 3]> = (0..40_000)
+        .map(|_| {
+            let c = rng.v() * 50.0;
+            [c, c + rng.v(), c + rng.v()]
+        })
+        .collect();
+    let build = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| KdTree::build(tris.clone(), BuildParams::default()).shape())
+    };
+    assert!(build(1) == build(2), "trees differ between 1 and 2 threads");
+}
