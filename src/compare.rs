@@ -1,117 +1,444 @@
-//! Image difference metrics in the spirit of OpenImageIO's `idiff`: per-channel mean absolute
-//! error, RMS, maximum (with its pixel), PSNR, and the share of pixels whose largest channel error
-//! exceeds a threshold.
+//! Image comparison with OpenImageIO `idiff`'s meaning of every flag and of the exit status, so a
+//! verdict here is the verdict `idiff` gives on the same pair (CI checks that on a set of pairs).
+//!
+//! What idiff (OpenImageIO 3.x, `ImageBufAlgo::compare`) does, and this module mirrors:
+//! - images are compared over the union of their sizes and channel counts; a pixel or channel
+//!   one image lacks reads as 0;
+//! - per value `f = |a - b|` (in double precision); a pixel *fails* once if any channel has
+//!   `f > fail` and `f > failrelative * (|a| + |b|) / 2`, and *warns* likewise;
+//! - a NaN or infinite value facing a different value makes the max error infinite but is not
+//!   counted as a failure, nor in the mean; NaN facing NaN (or equal infinities) is no error;
+//! - mean and RMS are over all values, PSNR = 20 log10(1 / RMS);
+//! - verdict: pass if failures <= `allowfailures`; else fail if failures exceed `failpercent`
+//!   of the pixels or the max error exceeds `hardfail`; else warn if warnings exceed
+//!   `warnpercent` or the max error exceeds `hardwarn`; else pass. (The first rule means a
+//!   comparison with no failures passes whatever its warnings, as idiff does.)
+//!
+//! Exit statuses are idiff's: 0 pass, 1 warning, 2 failure, 4 an input could not be read.
+//! Multi-view EXR files are compared view by view (idiff compares channels of the first part);
+//! a view present on one side only is a failure. Two files of one view each are compared
+//! directly, whatever their view names.
 
+use crate::error::{Error, Result};
+use crate::output::exr;
 use crate::output::image::Image;
 use serde::Serialize;
+use std::path::Path;
 
-#[derive(Clone, Debug, Serialize)]
-pub struct Difference {
+/// A multi-channel image: channel planes, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Planes {
     pub width: usize,
     pub height: usize,
-    /// Per channel R, G, B.
-    pub mean_abs: [f64; 3],
-    pub rms: [f64; 3],
-    pub max: [f64; 3],
-    /// Pixel (x, y) of the largest error over all channels.
-    pub max_pixel: (usize, usize),
-    /// PSNR over all channels with a peak of 1.0 (linear radiance), in dB.
-    pub psnr: f64,
-    /// Pixels where any channel differs by more than the threshold, and the threshold.
-    pub over_threshold: usize,
-    pub threshold: f64,
-    /// Pixels where either image is NaN or infinite.
-    pub non_finite: usize,
+    pub names: Vec<String>,
+    pub data: Vec<Vec<f32>>,
 }
 
-impl Difference {
-    pub fn mean_abs_all(&self) -> f64 {
-        self.mean_abs.iter().sum::<f64>() / 3.0
+impl Planes {
+    pub fn from_image(img: &Image) -> Planes {
+        Planes {
+            width: img.width,
+            height: img.height,
+            names: vec!["R".into(), "G".into(), "B".into()],
+            data: (0..3).map(|c| img.channel(c)).collect(),
+        }
     }
 
-    pub fn percent_over(&self) -> f64 {
-        100.0 * self.over_threshold as f64 / (self.width * self.height).max(1) as f64
-    }
-}
-
-/// Compares two images of equal size; `None` when the sizes differ.
-pub fn difference(a: &Image, b: &Image, threshold: f64) -> Option<Difference> {
-    if a.width != b.width || a.height != b.height {
-        return None;
-    }
-    let n = (a.width * a.height).max(1) as f64;
-    let mut sum = [0f64; 3];
-    let mut sq = [0f64; 3];
-    let mut max = [0f64; 3];
-    let mut max_all = -1f64;
-    let mut max_pixel = (0, 0);
-    let mut over = 0;
-    let mut non_finite = 0;
-    for (i, (pa, pb)) in a.pixels.iter().zip(&b.pixels).enumerate() {
-        if !pa.is_finite() || !pb.is_finite() {
-            non_finite += 1;
-            over += 1;
-            continue;
-        }
-        let mut worst = 0f64;
-        for c in 0..3 {
-            let d = (pa[c] as f64 - pb[c] as f64).abs();
-            sum[c] += d;
-            sq[c] += d * d;
-            max[c] = max[c].max(d);
-            worst = worst.max(d);
-        }
-        if worst > threshold {
-            over += 1;
-        }
-        if worst > max_all {
-            max_all = worst;
-            max_pixel = (i % a.width, i / a.width);
-        }
-    }
-    let mse = sq.iter().sum::<f64>() / (3.0 * n);
-    Some(Difference {
-        width: a.width,
-        height: a.height,
-        mean_abs: sum.map(|s| s / n),
-        rms: sq.map(|s| (s / n).sqrt()),
-        max,
-        max_pixel,
-        psnr: if mse > 0.0 {
-            -10.0 * mse.log10()
+    fn value(&self, c: usize, x: usize, y: usize) -> f32 {
+        if c < self.data.len() && x < self.width && y < self.height {
+            self.data[c][y * self.width + x]
         } else {
-            f64::INFINITY
+            0.0
+        }
+    }
+}
+
+/// idiff's flags (defaults as idiff's).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Thresholds {
+    pub fail: f32,
+    pub warn: f32,
+    pub fail_relative: f32,
+    pub warn_relative: f32,
+    pub fail_percent: f32,
+    pub warn_percent: f32,
+    pub hard_fail: f32,
+    pub hard_warn: f32,
+    pub allow_failures: u64,
+}
+
+impl Default for Thresholds {
+    fn default() -> Self {
+        Thresholds {
+            fail: 1e-6,
+            warn: 1e-6,
+            fail_relative: 0.0,
+            warn_relative: 0.0,
+            fail_percent: 0.0,
+            warn_percent: 0.0,
+            hard_fail: f32::INFINITY,
+            hard_warn: f32::INFINITY,
+            allow_failures: 0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Verdict {
+    Pass = 0,
+    Warn = 1,
+    Fail = 2,
+}
+
+/// Metrics of one comparison.
+#[derive(Clone, Debug, Serialize)]
+pub struct Comparison {
+    pub width: usize,
+    pub height: usize,
+    pub channels: Vec<String>,
+    /// Pixels of the first image (idiff's denominator for the percentages).
+    pub pixels: usize,
+    pub mean_error: f64,
+    pub rms_error: f64,
+    pub psnr: f64,
+    pub max_error: f64,
+    /// (x, y, channel) of the first largest error.
+    pub max_at: (usize, usize, usize),
+    pub per_channel_mean: Vec<f64>,
+    pub per_channel_rms: Vec<f64>,
+    pub per_channel_max: Vec<f64>,
+    pub failures: u64,
+    pub warnings: u64,
+    pub verdict: Verdict,
+}
+
+impl Comparison {
+    pub fn percent_failed(&self) -> f64 {
+        100.0 * self.failures as f64 / self.pixels.max(1) as f64
+    }
+}
+
+/// Compares two images with idiff's rules.
+pub fn compare(a: &Planes, b: &Planes, t: &Thresholds) -> Comparison {
+    let (w, h) = (a.width.max(b.width), a.height.max(b.height));
+    let nc = a.data.len().max(b.data.len());
+    let mut sum = vec![0f64; nc];
+    let mut sq = vec![0f64; nc];
+    let mut cmax = vec![0f64; nc];
+    let (mut max_error, mut max_at) = (0f64, (0, 0, 0));
+    let (mut failures, mut warnings) = (0u64, 0u64);
+    for y in 0..h {
+        for x in 0..w {
+            let (mut failed, mut warned) = (false, false);
+            for c in 0..nc {
+                let (av, bv) = (a.value(c, x, y) as f64, b.value(c, x, y) as f64);
+                if !av.is_finite() || !bv.is_finite() {
+                    let same = (av.is_nan() && bv.is_nan()) || av == bv;
+                    if !same && max_error != f64::INFINITY {
+                        max_error = f64::INFINITY;
+                        max_at = (x, y, c);
+                        cmax[c] = f64::INFINITY;
+                    }
+                    continue;
+                }
+                let f = (av - bv).abs();
+                sum[c] += f;
+                sq[c] += f * f;
+                cmax[c] = cmax[c].max(f);
+                if f > max_error {
+                    max_error = f;
+                    max_at = (x, y, c);
+                }
+                let mean_mag = (av.abs() + bv.abs()) * 0.5;
+                if !warned && f > t.warn as f64 && f > t.warn_relative as f64 * mean_mag {
+                    warned = true;
+                    warnings += 1;
+                }
+                if !failed && f > t.fail as f64 && f > t.fail_relative as f64 * mean_mag {
+                    failed = true;
+                    failures += 1;
+                }
+            }
+        }
+    }
+    let per_pixel = (w * h).max(1) as f64;
+    let values = per_pixel * nc.max(1) as f64;
+    let rms = (sq.iter().sum::<f64>() / values).sqrt();
+    let pixels = (a.width * a.height).max(1);
+    let mut c = Comparison {
+        width: w,
+        height: h,
+        channels: if a.names.len() >= b.names.len() {
+            a.names.clone()
+        } else {
+            b.names.clone()
         },
-        over_threshold: over,
-        threshold,
-        non_finite,
+        pixels,
+        mean_error: sum.iter().sum::<f64>() / values,
+        rms_error: rms,
+        psnr: 20.0 * (1.0 / rms).log10(),
+        max_error,
+        max_at,
+        per_channel_mean: sum.iter().map(|s| s / per_pixel).collect(),
+        per_channel_rms: sq.iter().map(|s| (s / per_pixel).sqrt()).collect(),
+        per_channel_max: cmax,
+        failures,
+        warnings,
+        verdict: Verdict::Pass,
+    };
+    c.verdict = verdict(&c, t);
+    c
+}
+
+/// idiff's decision, in idiff's order.
+pub fn verdict(c: &Comparison, t: &Thresholds) -> Verdict {
+    let n = c.pixels as f64;
+    if c.failures <= t.allow_failures {
+        Verdict::Pass
+    } else if c.failures as f64 > t.fail_percent as f64 / 100.0 * n
+        || c.max_error > t.hard_fail as f64
+    {
+        Verdict::Fail
+    } else if c.warnings as f64 > t.warn_percent as f64 / 100.0 * n
+        || c.max_error > t.hard_warn as f64
+    {
+        Verdict::Warn
+    } else {
+        Verdict::Pass
+    }
+}
+
+/// The views of an image file: EXR views by name (a file without views is one view named ""),
+/// any other format the image crate reads as one view "" with its R, G, B(, A) in [0, 1].
+pub fn read_views(path: &Path) -> Result<Vec<(String, Planes)>> {
+    let is_exr = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        return exr::read_view_planes(path);
+    }
+    let img =
+        image::open(path).map_err(|e| Error::input(path, format!("cannot read image: {e}")))?;
+    let has_alpha = img.color().has_alpha();
+    let rgba = img.to_rgba32f();
+    let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+    let nc = if has_alpha { 4 } else { 3 };
+    let data = (0..nc)
+        .map(|c| rgba.pixels().map(|p| p[c]).collect())
+        .collect();
+    let names = ["R", "G", "B", "A"][..nc]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    Ok(vec![(
+        String::new(),
+        Planes {
+            width: w,
+            height: h,
+            names,
+            data,
+        },
+    )])
+}
+
+/// Result of comparing two files view by view.
+#[derive(Clone, Debug, Serialize)]
+pub struct FileComparison {
+    pub views: Vec<(String, Comparison)>,
+    /// Views present in only one file.
+    pub missing_views: Vec<String>,
+    pub verdict: Verdict,
+}
+
+pub fn compare_files(a: &Path, b: &Path, t: &Thresholds) -> Result<FileComparison> {
+    let va = read_views(a)?;
+    let vb = read_views(b)?;
+    if let ([(name, pa)], [(_, pb)]) = (va.as_slice(), vb.as_slice()) {
+        // One view each: compare them whatever they are called (a plain RGB file against one
+        // eye of a stereo pair), as idiff would.
+        let c = compare(pa, pb, t);
+        let verdict = c.verdict;
+        return Ok(FileComparison {
+            views: vec![(name.clone(), c)],
+            missing_views: Vec::new(),
+            verdict,
+        });
+    }
+    let mut views = Vec::new();
+    let mut missing = Vec::new();
+    for (name, pa) in &va {
+        match vb.iter().find(|(n, _)| n == name) {
+            Some((_, pb)) => views.push((name.clone(), compare(pa, pb, t))),
+            None => missing.push(name.clone()),
+        }
+    }
+    missing.extend(
+        vb.iter()
+            .filter(|(n, _)| !va.iter().any(|(m, _)| m == n))
+            .map(|(n, _)| n.clone()),
+    );
+    let worst = views
+        .iter()
+        .map(|(_, c)| c.verdict)
+        .max()
+        .unwrap_or(Verdict::Pass);
+    let verdict = if missing.is_empty() {
+        worst
+    } else {
+        Verdict::Fail
+    };
+    Ok(FileComparison {
+        views,
+        missing_views: missing,
+        verdict,
     })
+}
+
+/// `|a - b| * scale` per channel over the union size, for `--diff`.
+pub fn difference_planes(a: &Planes, b: &Planes, scale: f32) -> Planes {
+    let (w, h) = (a.width.max(b.width), a.height.max(b.height));
+    let nc = a.data.len().max(b.data.len());
+    let data = (0..nc)
+        .map(|c| {
+            (0..w * h)
+                .map(|i| ((a.value(c, i % w, i / w) - b.value(c, i % w, i / w)).abs()) * scale)
+                .collect()
+        })
+        .collect();
+    let names = if a.names.len() >= b.names.len() {
+        a.names.clone()
+    } else {
+        b.names.clone()
+    };
+    Planes {
+        width: w,
+        height: h,
+        names,
+        data,
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
 
-    #[test]
-    fn identical_images_have_no_error_and_infinite_psnr() {
-        let a = Image::new(4, 3);
-        let d = difference(&a, &a, 0.02).unwrap();
-        assert_eq!(d.over_threshold, 0);
-        assert!(d.psnr.is_infinite());
+    fn planes(w: usize, h: usize, v: &[[f32; 3]]) -> Planes {
+        Planes {
+            width: w,
+            height: h,
+            names: vec!["R".into(), "G".into(), "B".into()],
+            data: (0..3).map(|c| v.iter().map(|p| p[c]).collect()).collect(),
+        }
     }
 
     #[test]
-    fn one_hot_pixel_is_counted_and_located() {
-        let a = Image::new(10, 10);
-        let mut b = a.clone();
-        b.set(3, 7, Vec3::new(0.0, 0.5, 0.0));
-        let d = difference(&a, &b, 0.02).unwrap();
-        assert_eq!(d.over_threshold, 1);
-        assert_eq!(d.max_pixel, (3, 7));
-        assert_eq!(d.max, [0.0, 0.5, 0.0]);
-        assert!((d.mean_abs[1] - 0.005).abs() < 1e-12);
-        assert!((d.psnr - (-10.0 * (0.25f64 / 300.0).log10())).abs() < 1e-9);
-        assert!(difference(&a, &Image::new(9, 10), 0.02).is_none());
+    fn a_pixel_fails_once_however_many_channels_exceed() {
+        let a = planes(2, 1, &[[0.0; 3], [0.0; 3]]);
+        let b = planes(2, 1, &[[0.2, 0.3, 0.0], [0.0; 3]]);
+        let t = Thresholds {
+            fail: 0.1,
+            warn: 0.05,
+            ..Default::default()
+        };
+        let c = compare(&a, &b, &t);
+        assert_eq!((c.failures, c.warnings), (1, 1));
+        assert_eq!(c.max_at, (0, 0, 1));
+        assert!((c.mean_error - 0.5 / 6.0).abs() < 1e-7);
+        assert!((c.psnr - 16.642_078_7).abs() < 1e-5, "{}", c.psnr);
+        assert_eq!(c.verdict, Verdict::Fail);
+    }
+
+    #[test]
+    fn nan_makes_the_max_infinite_without_counting_a_failure() {
+        let a = planes(1, 1, &[[f32::NAN, 0.0, 0.0]]);
+        let b = planes(1, 1, &[[0.0; 3]]);
+        let t = Thresholds {
+            hard_fail: 0.5,
+            ..Default::default()
+        };
+        let c = compare(&a, &b, &t);
+        assert_eq!(c.failures, 0);
+        assert!(c.max_error.is_infinite());
+        // No failures: idiff passes before it looks at hardfail.
+        assert_eq!(c.verdict, Verdict::Pass);
+        assert_eq!(compare(&a, &a, &t).max_error, 0.0);
+    }
+
+    #[test]
+    fn relative_threshold_uses_the_mean_magnitude() {
+        let a = planes(1, 1, &[[1.0, 0.0, 0.0]]);
+        let t = Thresholds {
+            fail: 0.01,
+            warn: 0.01,
+            fail_relative: 0.1,
+            warn_relative: 0.1,
+            ..Default::default()
+        };
+        assert_eq!(
+            compare(&a, &planes(1, 1, &[[1.105, 0.0, 0.0]]), &t).failures,
+            0
+        );
+        assert_eq!(
+            compare(&a, &planes(1, 1, &[[1.11, 0.0, 0.0]]), &t).failures,
+            1
+        );
+    }
+
+    #[test]
+    fn verdict_follows_idiffs_order() {
+        let a = planes(4, 1, &[[0.0; 3]; 4]);
+        let b = planes(4, 1, &[[0.5; 3]; 4]);
+        let v = |t: Thresholds| compare(&a, &b, &t).verdict;
+        assert_eq!(
+            v(Thresholds {
+                fail: 0.6,
+                warn: 0.1,
+                ..Default::default()
+            }),
+            Verdict::Pass
+        );
+        assert_eq!(
+            v(Thresholds {
+                fail: 0.1,
+                fail_percent: 100.0,
+                ..Default::default()
+            }),
+            Verdict::Warn
+        );
+        assert_eq!(
+            v(Thresholds {
+                fail: 0.1,
+                fail_percent: 100.0,
+                hard_fail: 0.4,
+                ..Default::default()
+            }),
+            Verdict::Fail
+        );
+        assert_eq!(
+            v(Thresholds {
+                fail: 0.1,
+                allow_failures: 4,
+                ..Default::default()
+            }),
+            Verdict::Pass
+        );
+        assert_eq!(
+            v(Thresholds {
+                fail: 0.1,
+                allow_failures: 3,
+                ..Default::default()
+            }),
+            Verdict::Fail
+        );
+    }
+
+    #[test]
+    fn different_sizes_compare_over_the_union_with_zeros() {
+        let a = planes(1, 1, &[[0.5; 3]]);
+        let b = planes(2, 1, &[[0.5; 3], [0.5; 3]]);
+        let c = compare(&a, &b, &Thresholds::default());
+        assert_eq!((c.width, c.failures), (2, 1));
+        assert_eq!(c.verdict, Verdict::Fail);
     }
 }

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use stereotrace::accel::SplitMethod;
 use stereotrace::pipeline::LoadedPipeline;
 use stereotrace::pipeline::run::{RunOptions, run};
-use stereotrace::{Error, bench, info};
+use stereotrace::{Error, bench, compare, info};
 
 #[derive(Parser)]
 #[command(
@@ -41,6 +41,49 @@ enum Command {
     },
     /// Validate a pipeline and its scene without rendering.
     Check { pipeline: PathBuf },
+    /// Compare two images with OpenImageIO idiff's rules and exit statuses (0 pass, 1 warning,
+    /// 2 failure, 4 unreadable input); multi-view EXR files are compared view by view.
+    Compare {
+        a: PathBuf,
+        b: PathBuf,
+        /// Failure threshold on the absolute difference of a value.
+        #[arg(long, default_value_t = 1e-6)]
+        fail: f32,
+        /// Warning threshold on the absolute difference of a value.
+        #[arg(long, default_value_t = 1e-6)]
+        warn: f32,
+        /// Relative failure threshold (difference over the mean magnitude of the two values).
+        #[arg(long, default_value_t = 0.0)]
+        failrelative: f32,
+        /// Relative warning threshold.
+        #[arg(long, default_value_t = 0.0)]
+        warnrelative: f32,
+        /// Percentage of pixels allowed to fail.
+        #[arg(long, default_value_t = 0.0)]
+        failpercent: f32,
+        /// Percentage of pixels allowed to warn.
+        #[arg(long, default_value_t = 0.0)]
+        warnpercent: f32,
+        /// Fail if any value differs by more than this.
+        #[arg(long, default_value_t = f32::INFINITY)]
+        hardfail: f32,
+        /// Warn if any value differs by more than this.
+        #[arg(long, default_value_t = f32::INFINITY)]
+        hardwarn: f32,
+        /// Number of failing pixels that still pass.
+        #[arg(long, default_value_t = 0)]
+        allowfailures: u64,
+        /// Write the absolute difference (times --scale) as a float EXR (one file per view,
+        /// the view name added before the extension when there are several).
+        #[arg(long)]
+        diff: Option<PathBuf>,
+        /// Scale of the difference image.
+        #[arg(long, default_value_t = 1.0)]
+        scale: f32,
+        /// Machine-readable report on stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// Speed measurements.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -134,6 +177,9 @@ fn parse_range(s: &str) -> Result<(u32, u32), String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Command::Compare { .. } = cli.command {
+        return ExitCode::from(compare_command(cli.command));
+    }
     match execute(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -141,6 +187,136 @@ fn main() -> ExitCode {
             ExitCode::from(e.exit_code() as u8)
         }
     }
+}
+
+/// `compare` keeps idiff's exit statuses: its errors exit 4, not 2.
+fn compare_command(command: Command) -> u8 {
+    let Command::Compare {
+        a,
+        b,
+        fail,
+        warn,
+        failrelative,
+        warnrelative,
+        failpercent,
+        warnpercent,
+        hardfail,
+        hardwarn,
+        allowfailures,
+        diff,
+        scale,
+        json,
+    } = command
+    else {
+        unreachable!("compare_command is only called for Command::Compare");
+    };
+    let t = compare::Thresholds {
+        fail,
+        warn,
+        fail_relative: failrelative,
+        warn_relative: warnrelative,
+        fail_percent: failpercent,
+        warn_percent: warnpercent,
+        hard_fail: hardfail,
+        hard_warn: hardwarn,
+        allow_failures: allowfailures,
+    };
+    let result = compare::compare_files(&a, &b, &t).and_then(|r| {
+        if let Some(out) = &diff {
+            write_diffs(&a, &b, out, scale)?;
+        }
+        Ok(r)
+    });
+    let r = match result {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 4;
+        }
+    };
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&r).expect("comparison serializes to JSON")
+        );
+    } else {
+        println!("Comparing \"{}\" and \"{}\"", a.display(), b.display());
+        for (view, c) in &r.views {
+            if !view.is_empty() {
+                println!("view {view}:");
+            }
+            println!(
+                "  Mean error = {:.6}  RMS error = {:.6}  Peak SNR = {:.3} dB",
+                c.mean_error, c.rms_error, c.psnr
+            );
+            println!(
+                "  Max error  = {} @ ({}, {}, {})",
+                c.max_error,
+                c.max_at.0,
+                c.max_at.1,
+                c.channels.get(c.max_at.2).map_or("?", String::as_str)
+            );
+            for (i, name) in c.channels.iter().enumerate() {
+                println!(
+                    "  {name:>6}: mean {:.6}  rms {:.6}  max {:.6}",
+                    c.per_channel_mean[i], c.per_channel_rms[i], c.per_channel_max[i]
+                );
+            }
+            println!(
+                "  {} pixels ({:.3}%) over {}",
+                c.warnings,
+                100.0 * c.warnings as f64 / c.pixels as f64,
+                warn
+            );
+            println!(
+                "  {} pixels ({:.3}%) over {}",
+                c.failures,
+                c.percent_failed(),
+                fail
+            );
+        }
+        for m in &r.missing_views {
+            println!("view '{m}' is in only one of the files");
+        }
+        println!(
+            "{}",
+            match r.verdict {
+                compare::Verdict::Pass => "PASS",
+                compare::Verdict::Warn => "WARNING",
+                compare::Verdict::Fail => "FAILURE",
+            }
+        );
+    }
+    r.verdict as u8
+}
+
+fn write_diffs(
+    a: &std::path::Path,
+    b: &std::path::Path,
+    out: &std::path::Path,
+    scale: f32,
+) -> Result<(), Error> {
+    let va = compare::read_views(a)?;
+    let vb = compare::read_views(b)?;
+    let several = va.len() > 1;
+    for (name, pa) in &va {
+        if let Some((_, pb)) = vb.iter().find(|(n, _)| n == name) {
+            let path = if several {
+                let stem = out
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                out.with_file_name(format!("{stem}_{name}.exr"))
+            } else {
+                out.to_path_buf()
+            };
+            stereotrace::output::exr::write_planes(
+                &path,
+                &compare::difference_planes(pa, pb, scale),
+            )?;
+        }
+    }
+    Ok(())
 }
 
 fn warn_all(warnings: &[String]) {
@@ -228,6 +404,7 @@ fn execute(command: Command) -> Result<(), Error> {
             pool.install(|| bench::bench_accel(&opts, |row| println!("{}", row.csv())))?;
             Ok(())
         }
+        Command::Compare { .. } => unreachable!("compare is dispatched before execute"),
         Command::Info {
             scene,
             accel,

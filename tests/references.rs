@@ -4,8 +4,8 @@
 mod common;
 
 use common::{reference_dirs, render_reference};
-use stereotrace::compare::difference;
-use stereotrace::output::exr::read_views;
+use stereotrace::compare::{Planes, Thresholds, Verdict, compare};
+use stereotrace::output::exr::read_view_planes;
 
 #[test]
 fn static_references_match_within_idiff_thresholds() {
@@ -14,25 +14,32 @@ fn static_references_match_within_idiff_thresholds() {
         !dirs.is_empty(),
         "no reference scenes found under ../shared/refs"
     );
+    // WHITTED.md section 6: idiff --fail 0.02 --failpercent 0.5 per eye.
+    let t = Thresholds {
+        fail: 0.02,
+        fail_percent: 0.5,
+        ..Default::default()
+    };
     let mut failures = Vec::new();
     for dir in dirs {
         let name = dir.file_name().unwrap().to_string_lossy().to_string();
         let ours = render_reference(&dir);
         for (eye, image) in &ours {
-            let reference = &read_views(&dir.join(format!("{eye}.exr"))).unwrap()[0].1;
-            let d = difference(image, reference, 0.02).expect("sizes match");
+            let reference = &read_view_planes(&dir.join(format!("{eye}.exr"))).unwrap()[0].1;
+            let d = compare(&Planes::from_image(image), reference, &t);
             println!(
-                "{name:>18} {eye:>5}: mean abs {:.5}  PSNR {:6.2} dB  over 0.02: {:.3}%  max {:.3} at {:?}",
-                d.mean_abs_all(),
+                "{name:>18} {eye:>5}: mean abs {:.5}  PSNR {:6.2} dB  over 0.02: {:.3}%  max {:.3} at {:?}  {:?}",
+                d.mean_error,
                 d.psnr,
-                d.percent_over(),
-                d.max.iter().cloned().fold(0.0, f64::max),
-                d.max_pixel
+                d.percent_failed(),
+                d.max_error,
+                d.max_at,
+                d.verdict
             );
-            if d.percent_over() > 0.5 {
+            if d.verdict == Verdict::Fail {
                 failures.push(format!(
                     "{name} {eye}: {:.3}% of pixels over 0.02",
-                    d.percent_over()
+                    d.percent_failed()
                 ));
             }
         }

@@ -5,6 +5,7 @@
 
 use super::image::Image;
 use super::write_atomic;
+use crate::compare::Planes;
 use crate::error::{Error, Result};
 use exr::prelude::*;
 use smallvec::SmallVec;
@@ -96,17 +97,20 @@ pub fn write_single_view(path: &Path, view: &str, image: &Image, half: bool) -> 
     )
 }
 
-/// A view being gathered from the channels of one or more parts.
-struct PartialView {
-    name: String,
-    planes: [Option<Vec<f32>>; 3],
-    size: (usize, usize),
+/// Canonical channel order within a view: R, G, B, A first, then the rest by name (the order
+/// OpenImageIO presents EXR channels in, so channel i of two files means the same thing).
+fn channel_rank(name: &str) -> (usize, String) {
+    let rank = ["R", "G", "B", "A"]
+        .iter()
+        .position(|c| *c == name)
+        .unwrap_or(4);
+    (rank, name.to_string())
 }
 
-/// Every view of an EXR file as `(name, image)`: multi-view single-part files are split by their
-/// channel prefixes, multi-part files by each part's `view` attribute; a file without views yields
-/// one view named by its layer name, or `""`.
-pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
+/// Every view of an EXR file with all its channels: multi-view single-part files are split by
+/// their channel prefixes, multi-part files by each part's `view` attribute; a file without views
+/// yields one view named by its layer name, or `""`.
+pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -115,7 +119,7 @@ pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| Error::input(path, format!("cannot read EXR: {e}")))?;
-    let mut views: Vec<PartialView> = Vec::new();
+    let mut views: Vec<(String, Planes)> = Vec::new();
     for layer in &image.layer_data {
         let size = (layer.size.0, layer.size.1);
         let names: Vec<String> = layer
@@ -140,42 +144,60 @@ pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
                 }
                 _ => (part_view.clone(), full.clone()),
             };
-            let c = match base.as_str() {
-                "R" => 0,
-                "G" => 1,
-                "B" => 2,
-                _ => continue,
-            };
-            let entry = match views.iter().position(|v| v.name == view) {
-                Some(i) => i,
+            let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            let planes = match views.iter().position(|(n, _)| *n == view) {
+                Some(i) => &mut views[i].1,
                 None => {
-                    views.push(PartialView {
-                        name: view.clone(),
-                        planes: [None, None, None],
-                        size,
-                    });
-                    views.len() - 1
+                    let empty = Planes {
+                        width: size.0,
+                        height: size.1,
+                        names: Vec::new(),
+                        data: Vec::new(),
+                    };
+                    views.push((view, empty));
+                    &mut views.last_mut().expect("a view was just pushed").1
                 }
             };
-            views[entry].planes[c] = Some(ch.sample_data.values_as_f32().collect());
+            planes.names.push(base);
+            planes.data.push(values);
         }
     }
-    views
+    for (_, p) in &mut views {
+        let mut chans: Vec<(String, Vec<f32>)> = p.names.drain(..).zip(p.data.drain(..)).collect();
+        chans.sort_by_key(|(n, _)| channel_rank(n));
+        (p.names, p.data) = chans.into_iter().unzip();
+    }
+    Ok(views)
+}
+
+/// Every view of an EXR file as a linear RGB image (each view must have R, G and B).
+pub fn read_views(path: &Path) -> Result<Vec<(String, Image)>> {
+    read_view_planes(path)?
         .into_iter()
-        .map(
-            |PartialView {
-                 name,
-                 planes: [r, g, b],
-                 size: (w, h),
-             }| match (r, g, b) {
-                (Some(r), Some(g), Some(b)) => Ok((name, Image::from_channels(w, h, &r, &g, &b))),
+        .map(|(name, p)| {
+            let plane = |c: &str| p.names.iter().position(|n| n == c).map(|i| &p.data[i]);
+            match (plane("R"), plane("G"), plane("B")) {
+                (Some(r), Some(g), Some(b)) => {
+                    Ok((name, Image::from_channels(p.width, p.height, r, g, b)))
+                }
                 _ => Err(Error::input(
                     path,
                     format!("view '{name}' lacks one of the R, G, B channels"),
                 )),
-            },
-        )
+            }
+        })
         .collect()
+}
+
+/// Writes arbitrary channel planes as a single-part float EXR (for difference images).
+pub fn write_planes(path: &Path, p: &Planes) -> Result<()> {
+    let channels = p
+        .names
+        .iter()
+        .zip(&p.data)
+        .map(|(n, d)| AnyChannel::new(Text::from(n.as_str()), FlatSamples::F32(d.clone())))
+        .collect();
+    write_layer(path, (p.width, p.height), attributes(), channels)
 }
 
 #[cfg(test)]

@@ -75,3 +75,43 @@ pub fn render_reference(dir: &Path) -> Vec<(String, Image)> {
     .unwrap();
     stereotrace::output::exr::read_views(&out.join("ours.exr")).unwrap()
 }
+
+/// OpenImageIO's command-line tools folder and a Python that imports `OpenImageIO`, when
+/// installed: from `STEREOTRACE_OIIO_BIN` / `STEREOTRACE_OIIO_PYTHON`, else `idiff` and
+/// `python3` on the PATH. With `STEREOTRACE_REQUIRE_OIIO=1` (CI) a missing install is an error
+/// instead of a skip.
+pub fn oiio() -> Option<(PathBuf, PathBuf)> {
+    let bin = std::env::var_os("STEREOTRACE_OIIO_BIN")
+        .map(PathBuf::from)
+        .or_else(|| which("idiff").and_then(|p| p.parent().map(Path::to_path_buf)));
+    let python = std::env::var_os("STEREOTRACE_OIIO_PYTHON")
+        .map(PathBuf::from)
+        .or_else(|| which("python3"));
+    let found = match (bin, python) {
+        (Some(b), Some(p)) if b.join("idiff").is_file() && python_has_oiio(&p) => Some((b, p)),
+        _ => None,
+    };
+    if found.is_none() {
+        assert!(
+            std::env::var("STEREOTRACE_REQUIRE_OIIO").as_deref() != Ok("1"),
+            "STEREOTRACE_REQUIRE_OIIO=1 but OpenImageIO (idiff and the Python module) was not found"
+        );
+        eprintln!("skipped: OpenImageIO is not installed (pip install openimageio; see .ci/run)");
+    }
+    found
+}
+
+fn which(name: &str) -> Option<PathBuf> {
+    std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join(name))
+            .find(|p| p.is_file())
+    })
+}
+
+fn python_has_oiio(python: &Path) -> bool {
+    std::process::Command::new(python)
+        .args(["-c", "import OpenImageIO"])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
