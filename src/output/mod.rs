@@ -3,10 +3,15 @@
 //! into a temporary file beside the target, then renamed, so a failed or interrupted run never
 //! leaves a half-written image under the final name.
 
+pub mod anaglyph;
 pub mod color;
 pub mod exr;
 pub mod image;
+pub mod layout;
 pub mod png;
+pub mod pseudo;
+pub mod video;
+pub mod wobble;
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};

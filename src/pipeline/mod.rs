@@ -1,12 +1,15 @@
 //! Pipeline files: the TOML schema (serde structs are the single source of defaults), validation
 //! with `file:line:column` errors, and the frame loop that drives a render (`run.rs`).
 
+pub mod outputs;
 pub mod run;
 pub mod template;
 
 use crate::accel::SplitMethod;
 use crate::error::{Error, Result};
 use crate::output::color::{Display, ToneMap};
+use crate::output::layout::Order;
+use crate::output::{anaglyph, pseudo, video, wobble};
 use crate::render::{Rig, ShadingModel};
 use crate::scene::Scene;
 use serde::Deserialize;
@@ -149,6 +152,7 @@ pub enum ExrViews {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum OutputSpec {
+    /// Multi-view OpenEXR, linear radiance.
     Exr {
         path: String,
         #[serde(default)]
@@ -156,6 +160,7 @@ pub enum OutputSpec {
         #[serde(default)]
         views: ExrViews,
     },
+    /// 8-bit sRGB, one file per eye.
     Png {
         path: String,
         /// Stops.
@@ -164,25 +169,185 @@ pub enum OutputSpec {
         #[serde(default)]
         tonemap: ToneMap,
     },
+    Anaglyph {
+        path: String,
+        #[serde(default = "default_anaglyph")]
+        method: anaglyph::Method,
+        #[serde(default)]
+        swap: bool,
+        #[serde(default)]
+        space: anaglyph::Space,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    SideBySide {
+        path: String,
+        #[serde(default)]
+        layout: Order,
+        #[serde(default)]
+        half: bool,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    TopBottom {
+        path: String,
+        #[serde(default)]
+        layout: Order,
+        #[serde(default)]
+        half: bool,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    Interlaced {
+        path: String,
+        #[serde(default)]
+        layout: Order,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    PseudoStereo {
+        path: String,
+        /// Which eye's sequence; "center" is the mono camera.
+        #[serde(default = "default_pseudo_eye")]
+        eye: crate::render::Eye,
+        #[serde(default)]
+        channels_now: pseudo::Channels,
+        /// Frames.
+        #[serde(default = "default_delay")]
+        delay: usize,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    WobbleGif {
+        path: String,
+        /// Views along the baseline, left to right (2 = the two eyes).
+        #[serde(default = "default_views")]
+        views: usize,
+        #[serde(default)]
+        mode: wobble::Mode,
+        #[serde(default = "default_delay_ms")]
+        delay_ms: u32,
+        /// Repetitions; 0 = forever.
+        #[serde(default, rename = "loop")]
+        loop_count: u16,
+        /// One GIF per frame (path needs {frame}); otherwise one GIF over the whole range.
+        #[serde(default)]
+        per_frame: bool,
+        #[serde(default)]
+        dither: bool,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+    },
+}
+
+fn default_anaglyph() -> anaglyph::Method {
+    anaglyph::Method::DuboisRedCyan
+}
+fn default_pseudo_eye() -> crate::render::Eye {
+    crate::render::Eye::Left
+}
+fn default_delay() -> usize {
+    1
+}
+fn default_views() -> usize {
+    2
+}
+/// About 8 views a second, inside the 100-150 ms range wobble GIFs commonly use.
+fn default_delay_ms() -> u32 {
+    120
 }
 
 impl OutputSpec {
     pub fn path(&self) -> &str {
         match self {
-            OutputSpec::Exr { path, .. } | OutputSpec::Png { path, .. } => path,
+            OutputSpec::Exr { path, .. }
+            | OutputSpec::Png { path, .. }
+            | OutputSpec::Anaglyph { path, .. }
+            | OutputSpec::SideBySide { path, .. }
+            | OutputSpec::TopBottom { path, .. }
+            | OutputSpec::Interlaced { path, .. }
+            | OutputSpec::PseudoStereo { path, .. }
+            | OutputSpec::WobbleGif { path, .. } => path,
         }
     }
 
     pub fn display(&self) -> Display {
-        match self {
+        let (exposure, tone_map) = match self {
+            OutputSpec::Exr { .. } => return Display::default(),
             OutputSpec::Png {
                 exposure, tonemap, ..
-            } => Display {
-                exposure: *exposure,
-                tone_map: *tonemap,
-            },
-            OutputSpec::Exr { .. } => Display::default(),
+            }
+            | OutputSpec::Anaglyph {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::SideBySide {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::TopBottom {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::Interlaced {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::PseudoStereo {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::WobbleGif {
+                exposure, tonemap, ..
+            } => (*exposure, *tonemap),
+        };
+        Display { exposure, tone_map }
+    }
+
+    pub fn video(&self) -> Option<&str> {
+        match self {
+            OutputSpec::Anaglyph { video, .. }
+            | OutputSpec::SideBySide { video, .. }
+            | OutputSpec::TopBottom { video, .. }
+            | OutputSpec::Interlaced { video, .. }
+            | OutputSpec::PseudoStereo { video, .. } => video.as_deref(),
+            _ => None,
         }
+    }
+
+    /// Outputs built from both eyes of a stereo pair.
+    fn needs_stereo(&self) -> bool {
+        matches!(
+            self,
+            OutputSpec::Anaglyph { .. }
+                | OutputSpec::SideBySide { .. }
+                | OutputSpec::TopBottom { .. }
+                | OutputSpec::Interlaced { .. }
+                | OutputSpec::WobbleGif { .. }
+        )
+    }
+
+    /// Whether the output writes one file for the whole range (a wobble GIF over the animation).
+    fn single_file(&self) -> bool {
+        matches!(
+            self,
+            OutputSpec::WobbleGif {
+                per_frame: false,
+                ..
+            }
+        )
     }
 }
 
@@ -292,6 +457,14 @@ impl LoadedPipeline {
             ));
         }
         check_animation(&spec, &scene, &mut warnings).map_err(at)?;
+        if let Some(i) = spec.outputs.iter().position(|o| o.video().is_some())
+            && !video::ffmpeg_available()
+        {
+            return Err(at(invalid(
+                &[Key::Name("output"), Key::Index(i), Key::Name("video")],
+                "video output needs the ffmpeg executable on the PATH (e.g. apt-get install ffmpeg)",
+            )));
+        }
         Ok(LoadedPipeline {
             file: file.to_path_buf(),
             spec,
@@ -386,31 +559,85 @@ fn validate_values(p: &Pipeline) -> std::result::Result<Vec<PathTemplate>, Inval
     let stereo = s.rig != Rig::Mono;
     let mut templates = Vec::new();
     for (i, o) in p.outputs.iter().enumerate() {
-        let keys = [N("output"), Key::Index(i), N("path")];
-        let t = PathTemplate::parse(o.path()).map_err(|m| invalid(&keys, m))?;
-        if multi_frame && !t.has_frame() {
+        let key = |k: &'static str| [N("output"), Key::Index(i), N(k)];
+        let t = PathTemplate::parse(o.path()).map_err(|m| invalid(&key("path"), m))?;
+        if multi_frame && !t.has_frame() && !o.single_file() {
             return Err(invalid(
-                &keys,
+                &key("path"),
                 "several frames are rendered: the path needs {frame} so files do not overwrite each other",
             ));
         }
         let per_eye = match o {
             OutputSpec::Exr { views, .. } => *views == ExrViews::Separate,
             OutputSpec::Png { .. } => true,
+            _ => false,
         };
         if per_eye && stereo && !t.has_eye() {
             return Err(invalid(
-                &keys,
+                &key("path"),
                 "this output writes one file per eye: the path needs {eye}",
             ));
         }
-        if let OutputSpec::Png { exposure, .. } = o
-            && !exposure.is_finite()
-        {
+        if o.needs_stereo() && !stereo {
             return Err(invalid(
-                &[N("output"), Key::Index(i), N("exposure")],
-                "exposure must be finite",
+                &key("kind"),
+                "this output needs both eyes: set [stereo] rig to a stereo rig, not \"mono\"",
             ));
+        }
+        if !o.display().exposure.is_finite() {
+            return Err(invalid(&key("exposure"), "exposure must be finite"));
+        }
+        match o {
+            OutputSpec::PseudoStereo { eye, delay, .. } => {
+                if *eye != crate::render::Eye::Center && !stereo {
+                    return Err(invalid(
+                        &key("eye"),
+                        "a mono rig renders only the \"center\" eye",
+                    ));
+                }
+                if *delay > 1000 {
+                    return Err(invalid(
+                        &key("delay"),
+                        format!("delay must be at most 1000 frames, got {delay}"),
+                    ));
+                }
+            }
+            OutputSpec::WobbleGif {
+                views,
+                delay_ms,
+                per_frame,
+                ..
+            } => {
+                if !(2..=64).contains(views) {
+                    return Err(invalid(
+                        &key("views"),
+                        format!("views must be between 2 and 64, got {views}"),
+                    ));
+                }
+                if !(10..=60_000).contains(delay_ms) {
+                    return Err(invalid(
+                        &key("delay_ms"),
+                        format!("delay_ms must be between 10 and 60000, got {delay_ms}"),
+                    ));
+                }
+                if *per_frame && multi_frame && !t.has_frame() {
+                    return Err(invalid(
+                        &key("path"),
+                        "per_frame = true writes one GIF per frame: the path needs {frame}",
+                    ));
+                }
+            }
+            _ => {}
+        }
+        if let Some(v) = o.video() {
+            let vt = PathTemplate::parse(v).map_err(|m| invalid(&key("video"), m))?;
+            if vt.has_frame() || vt.has_eye() {
+                return Err(invalid(
+                    &key("video"),
+                    "a video is one file: no {frame} or {eye} in its path",
+                ));
+            }
+            video::check_path(Path::new(v)).map_err(|m| invalid(&key("video"), m))?;
         }
         templates.push(t);
     }

@@ -2,11 +2,12 @@
 //! once, and hand the stereo frame to every output. Data flows one way:
 //! scene -> accel -> render -> outputs.
 
-use super::{ExrViews, LoadedPipeline, OutputSpec};
+use super::LoadedPipeline;
+use super::outputs::{StereoFrame, Writer};
 use crate::accel::{BuildParams, KdTree};
 use crate::error::{Error, Result};
-use crate::output::{exr, image::Image, png};
 use crate::render::frame::{FilmParams, render_eye, tile_count};
+use crate::render::sampling::hash32;
 use crate::render::{Eye, EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings};
 use crate::scene::camera::framing_camera;
 use crate::scene::light::{Light, LightKind};
@@ -36,12 +37,6 @@ pub struct RunSummary {
     pub seconds: f64,
     pub trace_seconds: f64,
     pub files: Vec<PathBuf>,
-}
-
-/// A stereo (or mono) frame: linear radiance per eye.
-pub struct StereoFrame {
-    pub frame: u32,
-    pub eyes: Vec<(Eye, Image)>,
 }
 
 /// The camera placement and lens for a frame, with the scene's fallbacks applied.
@@ -179,33 +174,52 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         zfar,
     };
 
+    let mut writers: Vec<Writer> = p
+        .spec
+        .outputs
+        .iter()
+        .zip(&p.templates)
+        .map(|(o, t)| Writer::new(o, t, &eyes, &opts.out_dir, spec.frames.fps))
+        .collect();
     let mut summary = RunSummary::default();
-    for frame in start..=end {
+    for (k, frame) in (start..=end).enumerate() {
         tile_bar.reset();
+        let views = views_needed(p, &eyes, k);
+        tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
         let mut stereo = StereoFrame {
             frame,
-            eyes: Vec::new(),
+            views: Vec::new(),
         };
-        for &eye in &eyes {
-            tile_bar.set_message(format!("frame {frame} {}", eye.name()));
-            let camera = EyeCamera::for_eye(camera_world, &rig, eye);
+        for (name, fraction) in views {
+            tile_bar.set_message(format!("frame {frame} {name}"));
+            let x_e = if spec.stereo.rig == crate::render::Rig::Mono {
+                0.0
+            } else {
+                spec.stereo.interaxial * fraction
+            };
+            let camera = EyeCamera::at_offset(camera_world, &rig, x_e);
             let film = FilmParams {
                 width: w,
                 height: h,
                 spp: spec.render.spp,
                 frame,
-                eye_seed: eye as u32,
+                eye_seed: view_seed(&name),
             };
             let t = Instant::now();
             let (image, counts) = render_eye(&integrator, &camera, &film, &|| tile_bar.inc(1));
             summary.trace_seconds += t.elapsed().as_secs_f64();
             summary.rays.add(&counts);
             summary.eyes_traced += 1;
-            stereo.eyes.push((eye, image));
+            stereo.views.push((name, image));
         }
-        summary.files.extend(write_outputs(p, opts, &stereo)?);
+        for wr in &mut writers {
+            summary.files.extend(wr.frame(&stereo)?);
+        }
         summary.frames += 1;
         frame_bar.inc(1);
+    }
+    for wr in writers {
+        summary.files.extend(wr.finish()?);
     }
     tile_bar.finish_and_clear();
     frame_bar.finish_and_clear();
@@ -213,39 +227,34 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     Ok(summary)
 }
 
-/// Hands one stereo frame to every output; returns the files written.
-pub fn write_outputs(
-    p: &LoadedPipeline,
-    opts: &RunOptions,
-    f: &StereoFrame,
-) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    for (spec, template) in p.spec.outputs.iter().zip(&p.templates) {
-        match spec {
-            OutputSpec::Exr { half, views, .. } => match views {
-                ExrViews::Single => {
-                    let path = template.path(&opts.out_dir, f.frame, "");
-                    let list: Vec<(&str, &Image)> =
-                        f.eyes.iter().map(|(e, img)| (e.name(), img)).collect();
-                    exr::write_multiview(&path, &list, *half)?;
-                    files.push(path);
-                }
-                ExrViews::Separate => {
-                    for (eye, img) in &f.eyes {
-                        let path = template.path(&opts.out_dir, f.frame, eye.name());
-                        exr::write_single_view(&path, eye.name(), img, *half)?;
-                        files.push(path);
-                    }
-                }
-            },
-            OutputSpec::Png { .. } => {
-                for (eye, img) in &f.eyes {
-                    let path = template.path(&opts.out_dir, f.frame, eye.name());
-                    png::write_png(&path, img, &spec.display())?;
-                    files.push(path);
-                }
+/// The union of the views the outputs need for frame `k` of the range, each traced once, in a
+/// fixed order (left, right, centre, then intermediate wobble views left to right).
+fn views_needed(p: &LoadedPipeline, eyes: &[Eye], k: usize) -> Vec<(String, f32)> {
+    let mut views: Vec<(String, f32)> = Vec::new();
+    for o in &p.spec.outputs {
+        for v in Writer::views_for(o, eyes, k) {
+            if !views.iter().any(|(n, _)| *n == v.0) {
+                views.push(v);
             }
         }
     }
-    Ok(files)
+    let rank = |n: &str| match n {
+        "left" => 0,
+        "right" => 1,
+        "center" => 2,
+        _ => 3,
+    };
+    views.sort_by(|a, b| rank(&a.0).cmp(&rank(&b.0)).then(a.1.total_cmp(&b.1)));
+    views
+}
+
+/// Sampling seed of a view: the eyes keep their historical seeds (0, 1, 2) so stored regression
+/// clips stay valid; intermediate views hash their name.
+fn view_seed(name: &str) -> u32 {
+    match name {
+        "left" => Eye::Left as u32,
+        "right" => Eye::Right as u32,
+        "center" => Eye::Center as u32,
+        _ => name.bytes().fold(0x5eed_u32, |h, b| hash32(h ^ b as u32)),
+    }
 }

@@ -1,0 +1,142 @@
+//! Video files through the ffmpeg executable: 8-bit sRGB frames are piped to it as raw RGB, and it
+//! encodes H.264 (`.mp4`, `.mov`, `.mkv`) or VP9 (`.webm`) at the pipeline's frame rate. The file is
+//! written under a temporary name and renamed when ffmpeg succeeds, like every other output.
+
+use crate::error::{Error, Result};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+/// Whether an `ffmpeg` executable runs.
+pub fn ffmpeg_available() -> bool {
+    Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Checks a video path's container before any rendering.
+pub fn check_path(path: &Path) -> std::result::Result<(), String> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("mp4" | "mov" | "mkv" | "webm") => Ok(()),
+        _ => Err(format!(
+            "video path '{}' must end in .mp4, .mov, .mkv or .webm",
+            path.display()
+        )),
+    }
+}
+
+pub struct VideoEncoder {
+    path: PathBuf,
+    tmp: PathBuf,
+    fps: f32,
+    child: Option<(Child, usize, usize)>,
+}
+
+impl VideoEncoder {
+    pub fn new(path: PathBuf, fps: f32) -> VideoEncoder {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tmp = path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
+        VideoEncoder {
+            path,
+            tmp,
+            fps,
+            child: None,
+        }
+    }
+
+    /// Appends one frame (RGB, 8 bits per channel); the first frame fixes the size.
+    pub fn push(&mut self, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
+        if self.child.is_none() {
+            if let Some(dir) = self.tmp.parent() {
+                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            }
+            let webm = self.path.extension().is_some_and(|e| e == "webm");
+            let codec: &[&str] = if webm {
+                &["-c:v", "libvpx-vp9", "-b:v", "0", "-crf", "30"]
+            } else {
+                &["-c:v", "libx264", "-crf", "18", "-preset", "medium"]
+            };
+            let child = Command::new("ffmpeg")
+                .args([
+                    "-y",
+                    "-loglevel",
+                    "error",
+                    "-f",
+                    "rawvideo",
+                    "-pix_fmt",
+                    "rgb24",
+                    "-s",
+                ])
+                .arg(format!("{width}x{height}"))
+                .arg("-r")
+                .arg(format!("{}", self.fps))
+                .args(["-i", "-"])
+                .args(codec)
+                // yuv420p for players' sake; it needs even sizes, so pad odd ones by a pixel.
+                .args([
+                    "-pix_fmt",
+                    "yuv420p",
+                    "-vf",
+                    "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+                ])
+                .arg(&self.tmp)
+                .stdin(Stdio::piped())
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .map_err(|e| {
+                    Error::input(
+                        &self.path,
+                        format!("cannot start ffmpeg (is it installed?): {e}"),
+                    )
+                })?;
+            self.child = Some((child, width, height));
+        }
+        let (child, w, h) = self.child.as_mut().expect("encoder started above");
+        if (*w, *h) != (width, height) {
+            return Err(Error::input(&self.path, "video frames changed size"));
+        }
+        let stdin = child.stdin.as_mut().expect("ffmpeg stdin is piped");
+        stdin.write_all(rgb).map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Closes the stream, waits for ffmpeg and moves the file into place.
+    pub fn finish(mut self) -> Result<Option<PathBuf>> {
+        let Some((mut child, _, _)) = self.child.take() else {
+            return Ok(None);
+        };
+        drop(child.stdin.take());
+        let out = child
+            .wait_with_output()
+            .map_err(|e| Error::io(&self.path, e))?;
+        if !out.status.success() {
+            let _ = std::fs::remove_file(&self.tmp);
+            return Err(Error::input(
+                &self.path,
+                format!(
+                    "ffmpeg failed: {}",
+                    String::from_utf8_lossy(&out.stderr).trim()
+                ),
+            ));
+        }
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        Ok(Some(self.path.clone()))
+    }
+}
+
+impl Drop for VideoEncoder {
+    fn drop(&mut self) {
+        // An encoder dropped without finish (an error elsewhere) leaves no partial file.
+        if let Some((mut child, _, _)) = self.child.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}

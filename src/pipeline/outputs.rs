@@ -1,0 +1,287 @@
+//! One writer per `[[output]]`: it receives every stereo frame in order and turns it into files.
+//! Writers keep state across frames where their kind needs it (pseudo-stereo's delayed frames, a
+//! wobble GIF's frames, a video stream) and finish at the end of the range. The image work itself
+//! lives in `output/`; this module only routes frames and paths.
+
+use super::template::PathTemplate;
+use super::{ExrViews, OutputSpec};
+use crate::error::{Error, Result};
+use crate::output::image::Image;
+use crate::output::pseudo::PseudoStereo;
+use crate::output::video::VideoEncoder;
+use crate::output::{anaglyph, exr, layout, png, wobble};
+use crate::render::Eye;
+use std::path::{Path, PathBuf};
+
+/// The views of one frame, linear radiance, by name (`left`, `right`, `center`, `wobble-i-of-n`).
+pub struct StereoFrame {
+    pub frame: u32,
+    pub views: Vec<(String, Image)>,
+}
+
+impl StereoFrame {
+    pub fn view(&self, name: &str) -> Result<&Image> {
+        self.views
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, img)| img)
+            .ok_or_else(|| {
+                Error::input(
+                    Path::new(name),
+                    "internal: a view an output needs was not rendered",
+                )
+            })
+    }
+}
+
+/// Name and eye position (fraction of the interaxial distance, -1/2 left to +1/2 right) of view
+/// `i` of `n` evenly spaced along the baseline; the ends are the two eyes themselves.
+pub fn wobble_view(i: usize, n: usize) -> (String, f32) {
+    if i == 0 {
+        ("left".into(), -0.5)
+    } else if i + 1 == n {
+        ("right".into(), 0.5)
+    } else {
+        (
+            format!("wobble-{i}-of-{n}"),
+            -0.5 + i as f32 / (n - 1) as f32,
+        )
+    }
+}
+
+pub struct Writer {
+    spec: OutputSpec,
+    template: PathTemplate,
+    /// Eyes of the rig, for EXR and PNG.
+    rig_eyes: Vec<Eye>,
+    video: Option<VideoEncoder>,
+    pseudo: Option<PseudoStereo>,
+    gif_frames: Vec<Vec<u8>>,
+    gif_size: (usize, usize),
+    out_dir: PathBuf,
+    /// Index of the next frame within the range.
+    k: usize,
+}
+
+impl Writer {
+    pub fn new(
+        spec: &OutputSpec,
+        template: &PathTemplate,
+        rig_eyes: &[Eye],
+        out_dir: &Path,
+        fps: f32,
+    ) -> Writer {
+        let pseudo = match spec {
+            OutputSpec::PseudoStereo {
+                channels_now,
+                delay,
+                ..
+            } => Some(PseudoStereo::new(*channels_now, *delay)),
+            _ => None,
+        };
+        Writer {
+            spec: spec.clone(),
+            template: template.clone(),
+            rig_eyes: rig_eyes.to_vec(),
+            video: spec
+                .video()
+                .map(|v| VideoEncoder::new(out_dir.join(v), fps)),
+            pseudo,
+            gif_frames: Vec::new(),
+            gif_size: (0, 0),
+            out_dir: out_dir.to_path_buf(),
+            k: 0,
+        }
+    }
+
+    /// Views this output needs for frame `k` of the range (names, eye offset fractions).
+    pub fn views_for(spec: &OutputSpec, rig_eyes: &[Eye], k: usize) -> Vec<(String, f32)> {
+        let eye = |e: Eye| (e.name().to_string(), e.offset_fraction());
+        match spec {
+            OutputSpec::Exr { .. } | OutputSpec::Png { .. } => {
+                rig_eyes.iter().map(|&e| eye(e)).collect()
+            }
+            OutputSpec::Anaglyph { .. }
+            | OutputSpec::SideBySide { .. }
+            | OutputSpec::TopBottom { .. }
+            | OutputSpec::Interlaced { .. } => vec![eye(Eye::Left), eye(Eye::Right)],
+            OutputSpec::PseudoStereo { eye: e, .. } => vec![eye(*e)],
+            OutputSpec::WobbleGif {
+                views,
+                mode,
+                per_frame,
+                ..
+            } => {
+                let order = wobble::schedule(*views, *mode);
+                if *per_frame {
+                    (0..*views).map(|i| wobble_view(i, *views)).collect()
+                } else {
+                    vec![wobble_view(order[k % order.len()], *views)]
+                }
+            }
+        }
+    }
+
+    /// Writes (or stores) what this output makes of one frame; returns the files written.
+    pub fn frame(&mut self, f: &StereoFrame) -> Result<Vec<PathBuf>> {
+        let display = self.spec.display();
+        let path = |eye: &str| self.template.path(&self.out_dir, f.frame, eye);
+        let mut files = Vec::new();
+        // Sequence outputs make one 8-bit image per frame: a PNG, and a video frame if asked.
+        let sequence: Option<(usize, usize, Vec<u8>)> = match &self.spec {
+            OutputSpec::Exr { half, views, .. } => {
+                let eyes: Vec<(&str, &Image)> = self
+                    .rig_eyes
+                    .iter()
+                    .map(|e| Ok((e.name(), f.view(e.name())?)))
+                    .collect::<Result<_>>()?;
+                match views {
+                    ExrViews::Single => {
+                        exr::write_multiview(&path(""), &eyes, *half)?;
+                        files.push(path(""));
+                    }
+                    ExrViews::Separate => {
+                        for (name, img) in eyes {
+                            exr::write_single_view(&path(name), name, img, *half)?;
+                            files.push(path(name));
+                        }
+                    }
+                }
+                None
+            }
+            OutputSpec::Png { .. } => {
+                for e in &self.rig_eyes {
+                    png::write_png(&path(e.name()), f.view(e.name())?, &display)?;
+                    files.push(path(e.name()));
+                }
+                None
+            }
+            OutputSpec::Anaglyph {
+                method,
+                swap,
+                space,
+                ..
+            } => {
+                let (l, r) = (f.view("left")?, f.view("right")?);
+                Some((
+                    l.width,
+                    l.height,
+                    anaglyph::anaglyph(l, r, *method, *swap, *space, &display),
+                ))
+            }
+            OutputSpec::SideBySide {
+                layout: order,
+                half,
+                ..
+            } => Some(encode(
+                &layout::side_by_side(f.view("left")?, f.view("right")?, *order, *half),
+                &display,
+            )),
+            OutputSpec::TopBottom {
+                layout: order,
+                half,
+                ..
+            } => Some(encode(
+                &layout::top_bottom(f.view("left")?, f.view("right")?, *order, *half),
+                &display,
+            )),
+            OutputSpec::Interlaced { layout: order, .. } => Some(encode(
+                &layout::interlaced(f.view("left")?, f.view("right")?, *order),
+                &display,
+            )),
+            OutputSpec::PseudoStereo { eye, .. } => {
+                let img = f.view(eye.name())?.clone();
+                let out = self
+                    .pseudo
+                    .as_mut()
+                    .expect("pseudo-stereo writers have state")
+                    .push(img);
+                Some(encode(&out, &display))
+            }
+            OutputSpec::WobbleGif {
+                views,
+                mode,
+                per_frame,
+                delay_ms,
+                loop_count,
+                dither,
+                ..
+            } => {
+                let names: Vec<String> = Self::views_for(&self.spec, &self.rig_eyes, self.k)
+                    .into_iter()
+                    .map(|(n, _)| n)
+                    .collect();
+                let order = if *per_frame {
+                    wobble::schedule(*views, *mode)
+                } else {
+                    vec![0]
+                };
+                let mut frames = Vec::new();
+                for &i in &order {
+                    let (w, h, rgb) = encode(f.view(&names[i])?, &display);
+                    self.gif_size = (w, h);
+                    frames.push(rgb);
+                }
+                if *per_frame {
+                    let p = path("");
+                    wobble::write_gif(
+                        &p,
+                        self.gif_size.0,
+                        self.gif_size.1,
+                        &frames,
+                        *delay_ms,
+                        *loop_count,
+                        *dither,
+                    )?;
+                    files.push(p);
+                } else {
+                    self.gif_frames.extend(frames);
+                }
+                None
+            }
+        };
+        if let Some((w, h, rgb)) = sequence {
+            let p = path("");
+            png::write_rgb8(&p, w, h, &rgb)?;
+            files.push(p);
+            if let Some(v) = self.video.as_mut() {
+                v.push(w, h, &rgb)?;
+            }
+        }
+        self.k += 1;
+        Ok(files)
+    }
+
+    /// Completes outputs that span the range (a wobble GIF over the animation, videos).
+    pub fn finish(self) -> Result<Vec<PathBuf>> {
+        let mut files = Vec::new();
+        if let OutputSpec::WobbleGif {
+            per_frame: false,
+            delay_ms,
+            loop_count,
+            dither,
+            ..
+        } = &self.spec
+        {
+            let p = self.template.path(&self.out_dir, 0, "");
+            wobble::write_gif(
+                &p,
+                self.gif_size.0,
+                self.gif_size.1,
+                &self.gif_frames,
+                *delay_ms,
+                *loop_count,
+                *dither,
+            )?;
+            files.push(p);
+        }
+        if let Some(v) = self.video {
+            files.extend(v.finish()?);
+        }
+        Ok(files)
+    }
+}
+
+fn encode(img: &Image, display: &crate::output::color::Display) -> (usize, usize, Vec<u8>) {
+    (img.width, img.height, png::to_srgb8(img, display))
+}
