@@ -347,7 +347,7 @@ fn execute(command: Command) -> Result<(), Error> {
             let s = run(&p, &opts)?;
             if !quiet {
                 eprintln!(
-                    "rendered {} frame(s), {} eye image(s), {} files; {:.1} M rays ({:.1} M primary, {:.1} M secondary, {:.1} M shadow) in {:.2} s ({:.2} M rays/s traced)",
+                    "rendered {} frame(s), {} eye image(s), {} files; {:.1} M rays ({:.1} M primary, {:.1} M secondary, {:.1} M shadow) in {:.2} s: tracing {:.2} s ({:.2} M rays/s), outputs {:.2} s",
                     s.frames,
                     s.eyes_traced,
                     s.files.len(),
@@ -356,7 +356,9 @@ fn execute(command: Command) -> Result<(), Error> {
                     s.rays.secondary as f64 * 1e-6,
                     s.rays.shadow as f64 * 1e-6,
                     s.seconds,
+                    s.trace_seconds,
                     s.rays.total() as f64 * 1e-6 / s.trace_seconds.max(1e-9),
+                    s.output_seconds,
                 );
             }
             Ok(())

@@ -340,7 +340,7 @@ impl OutputSpec {
     }
 
     /// Whether the output writes one file for the whole range (a wobble GIF over the animation).
-    fn single_file(&self) -> bool {
+    pub(crate) fn single_file(&self) -> bool {
         matches!(
             self,
             OutputSpec::WobbleGif {

@@ -36,6 +36,8 @@ pub struct RunSummary {
     pub rays: RayCounts,
     pub seconds: f64,
     pub trace_seconds: f64,
+    /// Time spent turning traced frames into files (all outputs).
+    pub output_seconds: f64,
     pub files: Vec<PathBuf>,
 }
 
@@ -97,7 +99,11 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
         ));
     }
     if end > start
-        && let Some(i) = p.templates.iter().position(|t| !t.has_frame())
+        && let Some(i) = p
+            .templates
+            .iter()
+            .zip(&p.spec.outputs)
+            .position(|(t, o)| !t.has_frame() && !o.single_file())
     {
         return Err(Error::input(
             &p.file,
@@ -212,15 +218,19 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             summary.eyes_traced += 1;
             stereo.views.push((name, image));
         }
+        let t = Instant::now();
         for wr in &mut writers {
             summary.files.extend(wr.frame(&stereo)?);
         }
+        summary.output_seconds += t.elapsed().as_secs_f64();
         summary.frames += 1;
         frame_bar.inc(1);
     }
+    let t = Instant::now();
     for wr in writers {
         summary.files.extend(wr.finish()?);
     }
+    summary.output_seconds += t.elapsed().as_secs_f64();
     tile_bar.finish_and_clear();
     frame_bar.finish_and_clear();
     summary.seconds = t0.elapsed().as_secs_f64();

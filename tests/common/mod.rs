@@ -115,3 +115,16 @@ fn python_has_oiio(python: &Path) -> bool {
         .output()
         .is_ok_and(|o| o.status.success())
 }
+
+/// Whether ffmpeg runs; with `STEREOTRACE_REQUIRE_FFMPEG=1` (CI) its absence is an error.
+pub fn ffmpeg() -> bool {
+    let ok = stereotrace::output::video::ffmpeg_available();
+    if !ok {
+        assert!(
+            std::env::var("STEREOTRACE_REQUIRE_FFMPEG").as_deref() != Ok("1"),
+            "STEREOTRACE_REQUIRE_FFMPEG=1 but ffmpeg was not found"
+        );
+        eprintln!("skipped: ffmpeg is not installed (apt-get install ffmpeg; see .ci/run)");
+    }
+    ok
+}
