@@ -229,3 +229,28 @@ fn display_space_anaglyphs_equal_ffmpeg_stereo3d_within_one_code_value() {
         );
     }
 }
+
+#[test]
+fn a_video_output_without_ffmpeg_is_a_clear_error_before_rendering() {
+    let dir = scratch("outputs-no-ffmpeg");
+    let scene = repo().join("scenes/whitted.gltf");
+    std::fs::write(
+        dir.join("p.toml"),
+        format!("[scene]\npath = {scene:?}\n[[output]]\nkind = \"anaglyph\"\npath = \"a.png\"\nvideo = \"a.mp4\"\n"),
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(dir.join("out"))
+        .arg(dir.join("p.toml"))
+        .env("PATH", "/nonexistent")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("p.toml:6:") && stderr.contains("ffmpeg"),
+        "{stderr}"
+    );
+    assert!(!dir.join("out").exists(), "nothing is written");
+}

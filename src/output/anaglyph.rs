@@ -267,6 +267,117 @@ mod tests {
         );
     }
 
+    /// Each method written out as scalar formulas from its published definition, independent of
+    /// the matrix table: (r, g, b) of the display-space result for display-space inputs.
+    fn scalar(method: Method, l: [f32; 3], r: [f32; 3]) -> [f32; 3] {
+        let luma = |p: [f32; 3]| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+        match method {
+            Method::RedCyan | Method::Color => [l[0], r[1], r[2]],
+            Method::Gray => [luma(l), luma(r), luma(r)],
+            Method::HalfColor => [luma(l), r[1], r[2]],
+            Method::Optimized => [0.7 * l[1] + 0.3 * l[2], r[1], r[2]],
+            Method::YellowBlue => [l[0], l[1], r[2]],
+            Method::GreenMagenta => [r[0], l[1], r[2]],
+            Method::DuboisRedCyan => [
+                0.4561 * l[0] + 0.500484 * l[1] + 0.176381 * l[2]
+                    - 0.0434706 * r[0]
+                    - 0.0879388 * r[1]
+                    - 0.00155529 * r[2],
+                -0.0400822 * l[0] - 0.0378246 * l[1] - 0.0157589 * l[2]
+                    + 0.378476 * r[0]
+                    + 0.73364 * r[1]
+                    - 0.0184503 * r[2],
+                -0.0152161 * l[0]
+                    - 0.0205971 * l[1]
+                    - 0.00546856 * l[2]
+                    - 0.0721527 * r[0]
+                    - 0.112961 * r[1]
+                    + 1.2264 * r[2],
+            ],
+            Method::DuboisGreenMagenta => [
+                -0.062 * l[0] - 0.158 * l[1] - 0.039 * l[2]
+                    + 0.529 * r[0]
+                    + 0.705 * r[1]
+                    + 0.024 * r[2],
+                0.284 * l[0] + 0.668 * l[1] + 0.143 * l[2]
+                    - 0.016 * r[0]
+                    - 0.015 * r[1]
+                    - 0.065 * r[2],
+                -0.015 * l[0] - 0.027 * l[1]
+                    + 0.021 * l[2]
+                    + 0.009 * r[0]
+                    + 0.075 * r[1]
+                    + 0.937 * r[2],
+            ],
+            Method::DuboisAmberBlue => [
+                1.062 * l[0] - 0.205 * l[1] + 0.299 * l[2]
+                    - 0.016 * r[0]
+                    - 0.123 * r[1]
+                    - 0.017 * r[2],
+                -0.026 * l[0] + 0.908 * l[1] + 0.068 * l[2] + 0.006 * r[0] + 0.062 * r[1]
+                    - 0.017 * r[2],
+                -0.038 * l[0] - 0.173 * l[1]
+                    + 0.022 * l[2]
+                    + 0.094 * r[0]
+                    + 0.185 * r[1]
+                    + 0.911 * r[2],
+            ],
+        }
+    }
+
+    #[test]
+    fn every_method_equals_its_scalar_formula_on_primaries_and_grays() {
+        let codes: [[u8; 3]; 8] = [
+            [0, 0, 0],
+            [255, 255, 255],
+            [255, 0, 0],
+            [0, 255, 0],
+            [0, 0, 255],
+            [128, 128, 128],
+            [64, 64, 64],
+            [200, 100, 50],
+        ];
+        let methods = [
+            Method::RedCyan,
+            Method::Gray,
+            Method::Color,
+            Method::HalfColor,
+            Method::Optimized,
+            Method::DuboisRedCyan,
+            Method::DuboisGreenMagenta,
+            Method::DuboisAmberBlue,
+            Method::YellowBlue,
+            Method::GreenMagenta,
+        ];
+        let left: Vec<u8> = codes
+            .iter()
+            .flat_map(|a| codes.iter().flat_map(move |_| *a))
+            .collect();
+        let right: Vec<u8> = codes
+            .iter()
+            .flat_map(|_| codes.iter().flat_map(|b| *b))
+            .collect();
+        for method in methods {
+            let got = anaglyph_srgb8(&left, &right, method);
+            for (i, px) in got.chunks_exact(3).enumerate() {
+                let f = |c: &[u8]| {
+                    [
+                        c[0] as f32 / 255.0,
+                        c[1] as f32 / 255.0,
+                        c[2] as f32 / 255.0,
+                    ]
+                };
+                let want = scalar(
+                    method,
+                    f(&left[3 * i..3 * i + 3]),
+                    f(&right[3 * i..3 * i + 3]),
+                )
+                .map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+                assert_eq!(px, want, "{method:?} pixel {i}");
+            }
+        }
+    }
+
     #[test]
     fn dubois_matches_a_scalar_evaluation_of_the_published_matrix() {
         let (l, r) = (Vec3::new(0.2, 0.5, 0.8), Vec3::new(0.6, 0.1, 0.3));
