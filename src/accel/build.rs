@@ -269,6 +269,39 @@ pub(super) fn clip_straddler(
     })
 }
 
+/// Evaluates a candidate plane with `below`/`above` references strictly on each side and
+/// `planar` lying in it, planar ones on either side, and keeps it if strictly cheaper than
+/// `best`. Both SAH searches call this in the same candidate order, so ties break identically.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn consider_plane(
+    best: &mut Option<(f32, Split)>,
+    p: &BuildParams,
+    node_box: &Aabb,
+    area: f32,
+    axis: usize,
+    pos: f32,
+    (below, above, planar): (usize, usize, usize),
+) {
+    for planar_below in [true, false] {
+        let (nb, na) = if planar_below {
+            (below + planar, above)
+        } else {
+            (below, above + planar)
+        };
+        let cost = sah_cost(p, node_box, area, axis, pos, nb, na);
+        if best.is_none_or(|(c, _)| cost < c) {
+            *best = Some((
+                cost,
+                Split {
+                    axis,
+                    pos,
+                    planar_below,
+                },
+            ));
+        }
+    }
+}
+
 impl KdTree {
     pub fn build(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> KdTree {
         Self::build_with(triangles, params, false)
@@ -451,24 +484,15 @@ impl Builder<'_> {
                     .iter()
                     .filter(|it| it.bounds.min[axis] == pos && it.bounds.max[axis] == pos)
                     .count();
-                for planar_below in [true, false] {
-                    let (nb, na) = if planar_below {
-                        (below + planar, above)
-                    } else {
-                        (below, above + planar)
-                    };
-                    let cost = sah_cost(&self.params, node_box, area, axis, pos, nb, na);
-                    if best.is_none_or(|(c, _)| cost < c) {
-                        best = Some((
-                            cost,
-                            Split {
-                                axis,
-                                pos,
-                                planar_below,
-                            },
-                        ));
-                    }
-                }
+                consider_plane(
+                    &mut best,
+                    &self.params,
+                    node_box,
+                    area,
+                    axis,
+                    pos,
+                    (below, above, planar),
+                );
             }
         }
         best.filter(|(cost, _)| *cost < leaf_cost).map(|(_, s)| s)

@@ -10,6 +10,28 @@ pub mod triangle;
 
 use glam::Vec3;
 
+/// A small deterministic generator for the module's tests (no extra crate needed).
+#[cfg(test)]
+pub(crate) mod test_rng {
+    use glam::Vec3;
+
+    pub struct Lcg(pub u64);
+
+    impl Lcg {
+        pub fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 40) as f32) / (1u64 << 24) as f32
+        }
+
+        pub fn v(&mut self, s: f32) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next()) * s
+        }
+    }
+}
+
 pub use build::{BuildParams, KdTree, SplitMethod};
 
 #[derive(Clone, Copy, Debug)]

@@ -9,8 +9,8 @@
 //! depend on the thread count: every choice is made by the same sequential rules.
 
 use super::build::{
-    Aabb, BuildNode, BuildParams, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler, sah_cost,
-    side_of,
+    Aabb, BuildNode, BuildParams, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler,
+    consider_plane, side_of,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -192,24 +192,15 @@ impl Ctx<'_> {
             let [ending, planar, starting] = count;
             n_above -= planar + ending;
             if pos > node_box.min[axis] && pos < node_box.max[axis] {
-                for planar_below in [true, false] {
-                    let (nb, na) = if planar_below {
-                        (n_below + planar, n_above)
-                    } else {
-                        (n_below, n_above + planar)
-                    };
-                    let cost = sah_cost(self.params, node_box, area, axis, pos, nb, na);
-                    if best.is_none_or(|(c, _)| cost < c) {
-                        best = Some((
-                            cost,
-                            Split {
-                                axis,
-                                pos,
-                                planar_below,
-                            },
-                        ));
-                    }
-                }
+                consider_plane(
+                    &mut best,
+                    self.params,
+                    node_box,
+                    area,
+                    axis,
+                    pos,
+                    (n_below, n_above, planar),
+                );
             }
             n_below += starting + planar;
         }
@@ -329,22 +320,9 @@ fn merge(a: Vec<Event>, b: Vec<Event>) -> Vec<Event> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_rng::Lcg;
     use super::super::{BuildParams, KdTree};
     use glam::Vec3;
-
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-        }
-        fn v(&mut self, s: f32) -> Vec3 {
-            Vec3::new(self.next(), self.next(), self.next()) * s
-        }
-    }
 
     fn same_tree(tris: Vec<[Vec3; 3]>, what: &str) {
         let fast = KdTree::build(tris.clone(), BuildParams::default());

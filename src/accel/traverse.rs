@@ -134,24 +134,10 @@ impl Intersect for KdTree {
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_rng::Lcg;
     use super::super::{BruteForce, BuildParams, SplitMethod};
     use super::*;
     use glam::Vec3;
-
-    /// Small deterministic generator so the test needs no extra crate.
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-        }
-        fn v(&mut self, s: f32) -> Vec3 {
-            Vec3::new(self.next(), self.next(), self.next()) * s
-        }
-    }
 
     fn soup(rng: &mut Lcg, n: usize) -> Vec<[Vec3; 3]> {
         (0..n)
