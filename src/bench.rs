@@ -194,7 +194,7 @@ fn load(spec: &str) -> Result<(String, Vec<[Vec3; 3]>, Mat4, f32)> {
     }
     let path = Path::new(spec);
     let scene = Scene::load(path)?;
-    let posed = pose::pose(&scene, &pose::rest_locals(&scene));
+    let posed = pose::pose(&scene, &[]);
     let g = &posed.geometry;
     let tris = (0..g.triangles.len()).map(|i| g.triangle(i)).collect();
     let (lo, hi) = g.bounds().unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));

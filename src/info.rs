@@ -32,7 +32,7 @@ pub struct SceneInfo {
 }
 
 pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
-    let posed = pose::pose(scene, &pose::rest_locals(scene));
+    let posed = pose::pose(scene, &[]);
     let count = |f: fn(&LightKind) -> bool| scene.lights.iter().filter(|l| f(&l.kind)).count();
     let accel = accel.map(|m| {
         let tris = (0..posed.geometry.triangles.len())
@@ -62,14 +62,14 @@ pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
                     .unwrap_or_else(|| format!("node {}", c.node))
             })
             .collect(),
-        skins: scene.skin_count,
+        skins: scene.skins.len(),
         morph_targets: scene
             .meshes
             .iter()
             .flat_map(|m| m.primitives.iter().map(|p| p.morph_targets.len()))
             .max()
             .unwrap_or(0),
-        animations: scene.animations.clone(),
+        animations: scene.animations.iter().map(|a| a.summary()).collect(),
         warnings: scene.warnings.clone(),
         accel,
     }

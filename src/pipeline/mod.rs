@@ -456,7 +456,7 @@ impl LoadedPipeline {
                 scene_path.display()
             ));
         }
-        check_animation(&spec, &scene, &mut warnings).map_err(at)?;
+        check_animation(&spec, &scene).map_err(at)?;
         if let Some(i) = spec.outputs.iter().position(|o| o.video().is_some())
             && !video::ffmpeg_available()
         {
@@ -474,6 +474,21 @@ impl LoadedPipeline {
             camera_instance,
             warnings,
         })
+    }
+
+    /// The animations `[scene] animation` plays.
+    pub fn selected_animations(&self) -> Vec<&crate::scene::animation::Animation> {
+        let all = &self.scene.animations;
+        match &self.spec.scene.animation {
+            Selector::Name(n) if n == "none" => Vec::new(),
+            Selector::Name(n) if n == "all" => all.iter().collect(),
+            Selector::Name(n) => all
+                .iter()
+                .filter(|a| a.name.as_deref() == Some(n.as_str()))
+                .take(1)
+                .collect(),
+            Selector::Index(i) => all.get(*i).into_iter().collect(),
+        }
     }
 
     /// The eyes this pipeline renders.
@@ -715,11 +730,7 @@ fn resolve_camera(
     Ok(Some(chosen))
 }
 
-fn check_animation(
-    p: &Pipeline,
-    scene: &Scene,
-    warnings: &mut Vec<String>,
-) -> std::result::Result<(), Invalid<'static>> {
+fn check_animation(p: &Pipeline, scene: &Scene) -> std::result::Result<(), Invalid<'static>> {
     let keys = [Key::Name("scene"), Key::Name("animation")];
     match &p.scene.animation {
         Selector::Name(n) if n == "none" => return Ok(()),
@@ -750,12 +761,6 @@ fn check_animation(
                 ));
             }
         }
-    }
-    if !scene.animations.is_empty() {
-        warnings.push(format!(
-            "{}: animation playback is not implemented yet; every frame renders the rest pose",
-            scene.source.display()
-        ));
     }
     Ok(())
 }

@@ -6,14 +6,17 @@ use super::LoadedPipeline;
 use super::outputs::{StereoFrame, Writer};
 use crate::accel::{BuildParams, KdTree};
 use crate::error::{Error, Result};
+use crate::output::write_atomic;
 use crate::render::frame::{FilmParams, render_eye, tile_count};
 use crate::render::sampling::hash32;
 use crate::render::{Eye, EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings};
+use crate::scene::animation;
 use crate::scene::camera::framing_camera;
 use crate::scene::light::{Light, LightKind};
 use crate::scene::pose::{self, PosedScene};
 use glam::{Mat4, Vec3};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -138,48 +141,11 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     );
     let tile_bar = bar(
         &multi,
-        (tile_count(w, h) * eyes.len()) as u64,
+        tile_count(w, h) as u64,
         "tiles  {bar:30} {pos}/{len} eta {eta} {msg}",
     );
 
-    // Static geometry: posed and built once for the whole range.
-    let posed = pose::pose(&p.scene, &pose::rest_locals(&p.scene));
-    let triangles: Vec<[Vec3; 3]> = (0..posed.geometry.triangles.len())
-        .map(|i| posed.geometry.triangle(i))
-        .collect();
-    let tree = KdTree::build(triangles, BuildParams::with_method(spec.accel.split));
-
-    let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed);
-    let lights = if posed.lights.is_empty() {
-        vec![head_light(&camera_world, &posed)]
-    } else {
-        posed.lights.clone()
-    };
-    let integrator = Integrator {
-        scene: SceneView {
-            accel: &tree,
-            geometry: &posed.geometry,
-            materials: &p.scene.materials,
-            textures: &p.scene.textures,
-            lights: &lights,
-        },
-        settings: TraceSettings {
-            max_depth: spec.render.max_depth,
-            shading: spec.render.shading,
-            background: Vec3::from(spec.render.background),
-        },
-    };
-    let rig = RigParams {
-        rig: spec.stereo.rig,
-        interaxial: spec.stereo.interaxial,
-        convergence: spec.stereo.convergence,
-        width: spec.render.width,
-        height: spec.render.height,
-        yfov,
-        znear,
-        zfar,
-    };
-
+    let animations = p.selected_animations();
     let mut writers: Vec<Writer> = p
         .spec
         .outputs
@@ -188,7 +154,78 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         .map(|(o, t)| Writer::new(o, t, &eyes, &opts.out_dir, spec.frames.fps))
         .collect();
     let mut summary = RunSummary::default();
+    let mut log = vec![FRAME_LOG_HEADER.to_string()];
+    // The tree of the last frame and the positions it was built over: a frame whose posed
+    // triangles are identical (a static scene, or only the camera or lights animated) reuses it.
+    let mut current: Option<(Vec<glam::Vec3>, Vec<[u32; 3]>, KdTree)> = None;
     for (k, frame) in (start..=end).enumerate() {
+        let tp = Instant::now();
+        let time = frame as f32 / spec.frames.fps;
+        let overrides = if animations.is_empty() {
+            Vec::new()
+        } else {
+            animation::sample(&animations, p.scene.nodes.len(), time)
+        };
+        let posed = pose::pose(&p.scene, &overrides);
+        let pose_s = tp.elapsed().as_secs_f64();
+
+        let tu = Instant::now();
+        let unchanged = current.as_ref().is_some_and(|(pos, tris, _)| {
+            *pos == posed.geometry.positions && *tris == posed.geometry.triangles
+        });
+        let (action, reason) = if unchanged {
+            ("reuse", "posed triangles identical to the previous frame")
+        } else {
+            let triangles: Vec<[Vec3; 3]> = (0..posed.geometry.triangles.len())
+                .map(|i| posed.geometry.triangle(i))
+                .collect();
+            let tree = KdTree::build(triangles, BuildParams::with_method(spec.accel.split));
+            let first = current.is_none();
+            current = Some((
+                posed.geometry.positions.clone(),
+                posed.geometry.triangles.clone(),
+                tree,
+            ));
+            if first {
+                ("build", "first frame")
+            } else {
+                ("rebuild", "animation moved geometry")
+            }
+        };
+        let (_, _, tree) = current.as_ref().expect("a tree was built or kept above");
+        let update_s = tu.elapsed().as_secs_f64();
+
+        let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed);
+        let lights = if posed.lights.is_empty() {
+            vec![head_light(&camera_world, &posed)]
+        } else {
+            posed.lights.clone()
+        };
+        let integrator = Integrator {
+            scene: SceneView {
+                accel: tree,
+                geometry: &posed.geometry,
+                materials: &p.scene.materials,
+                textures: &p.scene.textures,
+                lights: &lights,
+            },
+            settings: TraceSettings {
+                max_depth: spec.render.max_depth,
+                shading: spec.render.shading,
+                background: Vec3::from(spec.render.background),
+            },
+        };
+        let rig = RigParams {
+            rig: spec.stereo.rig,
+            interaxial: spec.stereo.interaxial,
+            convergence: spec.stereo.convergence,
+            width: spec.render.width,
+            height: spec.render.height,
+            yfov,
+            znear,
+            zfar,
+        };
+
         tile_bar.reset();
         let views = views_needed(p, &eyes, k);
         tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
@@ -196,6 +233,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             frame,
             views: Vec::new(),
         };
+        let mut view_seconds = [0f64; 3];
         for (name, fraction) in views {
             tile_bar.set_message(format!("frame {frame} {name}"));
             let x_e = if spec.stereo.rig == crate::render::Rig::Mono {
@@ -213,11 +251,24 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             };
             let t = Instant::now();
             let (image, counts) = render_eye(&integrator, &camera, &film, &|| tile_bar.inc(1));
-            summary.trace_seconds += t.elapsed().as_secs_f64();
+            let secs = t.elapsed().as_secs_f64();
+            view_seconds[match name.as_str() {
+                "left" => 0,
+                "right" => 1,
+                _ => 2,
+            }] += secs;
+            summary.trace_seconds += secs;
             summary.rays.add(&counts);
             summary.eyes_traced += 1;
             stereo.views.push((name, image));
         }
+        log.push(format!(
+            "{frame},scene,{action},{reason},{pose_s:.6},{update_s:.6},{:.6},{:.6},{:.6},{:.3}",
+            view_seconds[0],
+            view_seconds[1],
+            view_seconds[2],
+            tree.stats().sah_cost
+        ));
         let t = Instant::now();
         for wr in &mut writers {
             summary.files.extend(wr.frame(&stereo)?);
@@ -231,11 +282,24 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         summary.files.extend(wr.finish()?);
     }
     summary.output_seconds += t.elapsed().as_secs_f64();
+    let log_path = opts.out_dir.join("frame-log.csv");
+    write_atomic(&log_path, |f| {
+        for line in &log {
+            writeln!(f, "{line}")?;
+        }
+        Ok(())
+    })?;
+    summary.files.push(log_path);
     tile_bar.finish_and_clear();
     frame_bar.finish_and_clear();
     summary.seconds = t0.elapsed().as_secs_f64();
     Ok(summary)
 }
+
+/// Columns of `frame-log.csv`: one row per frame and object, what the acceleration update did
+/// and why, and where the time went (`other_s`: views other than the two eyes).
+pub const FRAME_LOG_HEADER: &str =
+    "frame,object,action,reason,pose_s,update_s,left_s,right_s,other_s,sah_cost";
 
 /// The union of the views the outputs need for frame `k` of the range, each traced once, in a
 /// fixed order (left, right, centre, then intermediate wobble views left to right).

@@ -22,9 +22,14 @@ pub struct Primitive {
     pub triangles: Vec<[u32; 3]>,
     /// Index into `Scene::materials` (the last entry is the default material).
     pub material: usize,
-    /// Morph targets: position and normal deltas (loaded for the animation stage).
+    /// Morph targets: position and normal deltas.
     pub morph_targets: Vec<MorphTarget>,
+    /// Skinning influences: every JOINTS_n / WEIGHTS_n set, as stored.
+    pub skin_sets: Vec<SkinSet>,
 }
+
+/// One JOINTS_n / WEIGHTS_n pair: per vertex, four joint indices and their weights.
+pub type SkinSet = (Vec<[u16; 4]>, Vec<[f32; 4]>);
 
 #[derive(Clone, Debug, Default)]
 pub struct MorphTarget {
@@ -174,6 +179,28 @@ fn load_primitive(
         morph_targets.push(MorphTarget { positions, normals });
     }
 
+    let mut skin_sets = Vec::new();
+    for set in 0.. {
+        let (Some(j), Some(w)) = (reader.read_joints(set), reader.read_weights(set)) else {
+            break;
+        };
+        let joints: Vec<[u16; 4]> = j.into_u16().collect();
+        let weights: Vec<[f32; 4]> = w.into_f32().collect();
+        check_count(
+            file,
+            &format!("{object}.attributes.JOINTS_{set}"),
+            joints.len(),
+            n,
+        )?;
+        check_count(
+            file,
+            &format!("{object}.attributes.WEIGHTS_{set}"),
+            weights.len(),
+            n,
+        )?;
+        skin_sets.push((joints, weights));
+    }
+
     Ok(Primitive {
         positions,
         normals,
@@ -182,6 +209,7 @@ fn load_primitive(
         triangles,
         material: prim.material().index().unwrap_or(default_material),
         morph_targets,
+        skin_sets,
     })
 }
 

@@ -11,7 +11,7 @@ pub mod mesh;
 pub mod pose;
 
 use crate::error::{Error, Result};
-use animation::AnimationSummary;
+use animation::Animation;
 use camera::CameraDef;
 use glam::{Mat4, Quat, Vec3};
 use light::{LightDef, LightKind};
@@ -63,6 +63,50 @@ pub struct Node {
     pub weights: Option<Vec<f32>>,
 }
 
+/// A skin: its joint nodes and their inverse bind matrices.
+#[derive(Clone, Debug)]
+pub struct Skin {
+    pub joints: Vec<usize>,
+    pub inverse_bind: Vec<Mat4>,
+}
+
+fn load_skin(path: &Path, buffers: &[Vec<u8>], sk: &gltf::Skin, node_count: usize) -> Result<Skin> {
+    let object = format!("skins[{}]", sk.index());
+    let joints: Vec<usize> = sk.joints().map(|j| j.index()).collect();
+    let inverse_bind = match sk.inverse_bind_matrices() {
+        Some(acc) => {
+            buffers::check_accessor(
+                path,
+                buffers,
+                &acc,
+                &format!("{object}.inverseBindMatrices"),
+            )?;
+            let reader = sk.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+            let m: Vec<Mat4> = reader
+                .read_inverse_bind_matrices()
+                .ok_or_else(|| Error::scene(path, &object, "inverseBindMatrices cannot be read"))?
+                .map(|a| Mat4::from_cols_array_2d(&a))
+                .collect();
+            if m.len() != joints.len() || m.iter().any(|x| !x.is_finite()) {
+                return Err(Error::scene(
+                    path,
+                    &object,
+                    "inverseBindMatrices must hold one finite matrix per joint",
+                ));
+            }
+            m
+        }
+        None => vec![Mat4::IDENTITY; joints.len()],
+    };
+    if joints.iter().any(|&j| j >= node_count) {
+        return Err(Error::scene(path, &object, "a joint is not a node"));
+    }
+    Ok(Skin {
+        joints,
+        inverse_bind,
+    })
+}
+
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub source: PathBuf,
@@ -76,8 +120,8 @@ pub struct Scene {
     pub textures: Vec<Option<Texture>>,
     pub lights: Vec<LightDef>,
     pub cameras: Vec<CameraDef>,
-    pub animations: Vec<AnimationSummary>,
-    pub skin_count: usize,
+    pub animations: Vec<Animation>,
+    pub skins: Vec<Skin>,
     /// Things the loader skipped or approximated; the command line prints them.
     pub warnings: Vec<String>,
 }
@@ -119,6 +163,7 @@ impl Scene {
             .map(|m| mesh::load_mesh(path, &buffers, &m, default_material, &mut warnings))
             .collect::<Result<Vec<_>>>()?;
         let nodes: Vec<Node> = document.nodes().map(load_node).collect();
+        let nodes_len = nodes.len();
         let roots = scene_roots(path, document)?;
         check_hierarchy(path, &nodes, &roots)?;
         let lights = document
@@ -172,9 +217,12 @@ impl Scene {
             cameras,
             animations: document
                 .animations()
-                .map(|a| animation::summarize(&a))
-                .collect(),
-            skin_count: document.skins().len(),
+                .map(|a| animation::load_animation(path, &buffers, &a))
+                .collect::<Result<_>>()?,
+            skins: document
+                .skins()
+                .map(|sk| load_skin(path, &buffers, &sk, nodes_len))
+                .collect::<Result<_>>()?,
             warnings,
         })
     }

@@ -1,8 +1,9 @@
 //! A scene at one instant, in world space: the triangles with their shading attributes, the lights
 //! and the cameras where the node hierarchy puts them. This is what `accel/` and `render/` consume.
 
-use super::Scene;
+use super::animation::NodeOverrides;
 use super::light::Light;
+use super::{Scene, Transform};
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 
 /// World-space triangle soup with per-vertex shading data.
@@ -69,20 +70,55 @@ pub fn world_matrices(scene: &Scene, locals: &[Mat4]) -> Vec<Mat4> {
     world
 }
 
-/// Local matrices as the file stores them (no animation applied).
-pub fn rest_locals(scene: &Scene) -> Vec<Mat4> {
-    scene.nodes.iter().map(|n| n.transform.matrix()).collect()
+/// Local matrices with animated TRS parts applied (`overrides` empty: the rest pose). Animation
+/// targets only TRS nodes; a node stored as a matrix keeps its matrix.
+pub fn local_matrices(scene: &Scene, overrides: &[NodeOverrides]) -> Vec<Mat4> {
+    scene
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(i, n)| match (n.transform, overrides.get(i)) {
+            (
+                Transform::Trs {
+                    translation,
+                    rotation,
+                    scale,
+                },
+                Some(o),
+            ) => Mat4::from_scale_rotation_translation(
+                o.scale.unwrap_or(scale),
+                o.rotation.unwrap_or(rotation),
+                o.translation.unwrap_or(translation),
+            ),
+            (t, _) => t.matrix(),
+        })
+        .collect()
 }
 
-/// Places every mesh, light and camera of the scene with the given local node matrices.
-pub fn pose(scene: &Scene, locals: &[Mat4]) -> PosedScene {
-    let world = world_matrices(scene, locals);
+/// Places every mesh, light and camera of the scene; `overrides` (per node, from
+/// `animation::sample`) may be empty for the rest pose.
+pub fn pose(scene: &Scene, overrides: &[NodeOverrides]) -> PosedScene {
+    let world = world_matrices(scene, &local_matrices(scene, overrides));
     let mut out = PosedScene::default();
     for n in scene.traversal() {
         let node = &scene.nodes[n];
         let m = world[n];
         if let Some(mesh) = node.mesh {
-            append_mesh(&mut out.geometry, scene, mesh, &m);
+            // Morph weights: the animated channel, else node.weights, else mesh.weights, else 0.
+            let weights = overrides
+                .get(n)
+                .and_then(|o| o.weights.clone())
+                .or_else(|| node.weights.clone())
+                .unwrap_or_else(|| scene.meshes[mesh].weights.clone());
+            let skin = node.skin.map(|s| joint_matrices(scene, s, &world));
+            append_mesh(
+                &mut out.geometry,
+                scene,
+                mesh,
+                &m,
+                &weights,
+                skin.as_deref(),
+            );
         }
         if let Some(l) = node.light {
             out.lights.push(Light::place(&scene.lights[l], &m));
@@ -98,6 +134,19 @@ pub fn pose(scene: &Scene, locals: &[Mat4]) -> PosedScene {
     out
 }
 
+/// Per joint: the skinning matrix (joint world x inverse bind) and its normal matrix.
+fn joint_matrices(scene: &Scene, skin: usize, world: &[Mat4]) -> Vec<(Mat4, Mat3)> {
+    let s = &scene.skins[skin];
+    s.joints
+        .iter()
+        .zip(&s.inverse_bind)
+        .map(|(&j, ibm)| {
+            let m = world[j] * *ibm;
+            (m, Mat3::from_mat4(m).inverse().transpose())
+        })
+        .collect()
+}
+
 /// Rotation and translation of a matrix, with scale and shear removed (Gram-Schmidt on the axes).
 fn rigid(m: &Mat4) -> Mat4 {
     let x = m.x_axis.truncate().normalize_or(Vec3::X);
@@ -111,36 +160,82 @@ fn rigid(m: &Mat4) -> Mat4 {
     )
 }
 
-fn append_mesh(g: &mut Geometry, scene: &Scene, mesh: usize, m: &Mat4) {
-    // Normals transform with the inverse transpose; a mirroring transform (negative determinant)
-    // reverses the winding, so swap two indices to keep CCW meaning "front".
+fn append_mesh(
+    g: &mut Geometry,
+    scene: &Scene,
+    mesh: usize,
+    m: &Mat4,
+    weights: &[f32],
+    skin: Option<&[(Mat4, Mat3)]>,
+) {
+    // Rigid meshes: normals transform with the inverse transpose, and a mirroring transform
+    // (negative determinant) reverses the winding, so two indices swap to keep CCW as "front".
     let normal_matrix = Mat3::from_mat4(*m).inverse().transpose();
-    let mirrored = m.determinant() < 0.0;
+    let mirrored = skin.is_none() && m.determinant() < 0.0;
     for prim in &scene.meshes[mesh].primitives {
         let base = g.positions.len() as u32;
-        g.positions
-            .extend(prim.positions.iter().map(|&p| m.transform_point3(p)));
-        match &prim.normals {
-            Some(ns) => g
-                .normals
-                .extend(ns.iter().map(|&n| (normal_matrix * n).normalize_or_zero())),
-            None => g
-                .normals
-                .extend(std::iter::repeat_n(Vec3::ZERO, prim.positions.len())),
+        let count = prim.positions.len();
+        // Morph deltas first (DESIGN.md: before skinning).
+        let mut positions = prim.positions.clone();
+        let mut normals = prim.normals.clone();
+        for (target, &w) in prim.morph_targets.iter().zip(weights) {
+            if w == 0.0 {
+                continue;
+            }
+            if let Some(d) = &target.positions {
+                positions.iter_mut().zip(d).for_each(|(p, d)| *p += w * *d);
+            }
+            if let (Some(ns), Some(d)) = (normals.as_mut(), &target.normals) {
+                ns.iter_mut().zip(d).for_each(|(n, d)| *n += w * *d);
+            }
+        }
+        match (skin, prim.skin_sets.is_empty()) {
+            (Some(joints), false) => {
+                // Skinned: only the joints place the mesh (the mesh node's own transform is
+                // ignored, glTF 2.0 section 3.7.3). Normals blend the per-joint normal matrices,
+                // as the Khronos sample viewer does (DESIGN.md).
+                for v in 0..count {
+                    let (mut p, mut n) = (Vec3::ZERO, Vec3::ZERO);
+                    for (js, ws) in &prim.skin_sets {
+                        for k in 0..4 {
+                            let w = ws[v][k];
+                            if w == 0.0 {
+                                continue;
+                            }
+                            let (jm, nm) = joints
+                                .get(js[v][k] as usize)
+                                .copied()
+                                .unwrap_or((Mat4::IDENTITY, Mat3::IDENTITY));
+                            p += w * jm.transform_point3(positions[v]);
+                            if let Some(ns) = &normals {
+                                n += w * (nm * ns[v]);
+                            }
+                        }
+                    }
+                    g.positions.push(p);
+                    g.normals.push(n.normalize_or_zero());
+                }
+            }
+            _ => {
+                g.positions
+                    .extend(positions.iter().map(|&p| m.transform_point3(p)));
+                match &normals {
+                    Some(ns) => g
+                        .normals
+                        .extend(ns.iter().map(|&n| (normal_matrix * n).normalize_or_zero())),
+                    None => g.normals.extend(std::iter::repeat_n(Vec3::ZERO, count)),
+                }
+            }
         }
         for (set, uv) in prim.tex_coords.iter().enumerate() {
             match uv {
                 Some(uv) => g.tex_coords[set].extend_from_slice(uv),
-                None => {
-                    g.tex_coords[set].extend(std::iter::repeat_n(Vec2::ZERO, prim.positions.len()))
-                }
+                None => g.tex_coords[set].extend(std::iter::repeat_n(Vec2::ZERO, count)),
             }
         }
         match &prim.colors {
             Some(c) => g.colors.extend_from_slice(c),
-            None => g
-                .colors
-                .extend(std::iter::repeat_n(Vec4::ONE, prim.positions.len())),
+            None => g.colors.extend(std::iter::repeat_n(Vec4::ONE, count)),
         }
         for t in &prim.triangles {
             let [a, b, c] = t.map(|i| i + base);
