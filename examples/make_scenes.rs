@@ -1,6 +1,7 @@
 //! Writes the project's own scenes into `scenes/` as self-contained glTF 2.0 files (buffers and
 //! images embedded as data URIs). Run `cargo run --example make_scenes` after changing it.
 //!
+//! `whitted_animated.gltf`: the same with the glass sphere moving (the default animation).
 //! `whitted.gltf`: Whitted's 1980 set-up — a mirror sphere and a glass sphere over a red and
 //! yellow checkered floor, two point lights, a sky-blue background (set by the pipeline).
 
@@ -68,6 +69,18 @@ impl Blob {
         self.accessors.len() - 1
     }
 
+    fn scalars(&mut self, data: &[f32]) -> usize {
+        let raw: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.view(&raw, None);
+        let (lo, hi) = data
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR", "min": [lo], "max": [hi]}));
+        self.accessors.len() - 1
+    }
+
     fn indices(&mut self, data: &[[u32; 3]]) -> usize {
         let raw: Vec<u8> = data
             .iter()
@@ -128,7 +141,9 @@ fn checker_png(a: [u8; 3], b: [u8; 3]) -> Vec<u8> {
     out.into_inner()
 }
 
-fn whitted() -> Value {
+/// The Whitted scene; `animated` adds a 4-second animation in which the glass sphere glides
+/// across the front of the mirror sphere and back (LINEAR translation keys).
+fn whitted(animated: bool) -> Value {
     let mut blob = Blob::default();
     let mut meshes = Vec::new();
     let mut nodes = Vec::new();
@@ -176,8 +191,24 @@ fn whitted() -> Value {
 
     let png = checker_png([200, 40, 30], [235, 200, 40]);
     let image_view = blob.view(&png, None);
+    let mut animations = Vec::new();
+    if animated {
+        let times = blob.scalars(&[0.0, 1.0, 2.0, 3.0, 4.0]);
+        let path = blob.floats(
+            &[
+                [0.55, 1.05, 0.3],
+                [-1.2, 1.3, 0.6],
+                [-0.3, 0.8, 1.4],
+                [1.3, 1.2, 0.9],
+                [0.55, 1.05, 0.3],
+            ],
+            false,
+        );
+        animations.push(json!({"name": "glide", "samplers": [{"input": times, "output": path, "interpolation": "LINEAR"}],
+            "channels": [{"sampler": 0, "target": {"node": 2, "path": "translation"}}]}));
+    }
     let data = base64::engine::general_purpose::STANDARD.encode(&blob.bytes);
-    json!({
+    let mut scene = json!({
         "asset": {"version": "2.0", "generator": "stereotrace examples/make_scenes.rs"},
         "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior"],
         "scene": 0,
@@ -201,14 +232,20 @@ fn whitted() -> Value {
         "accessors": blob.accessors,
         "bufferViews": blob.views,
         "buffers": [{"byteLength": blob.bytes.len(), "uri": format!("data:application/octet-stream;base64,{data}")}]
-    })
+    });
+    if animated {
+        scene["animations"] = json!(animations);
+    }
+    scene
 }
 
 fn main() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     std::fs::create_dir_all(&dir).expect("scenes/ can be created");
-    let path = dir.join("whitted.gltf");
-    let text = serde_json::to_string_pretty(&whitted()).expect("scene serializes");
-    std::fs::write(&path, text + "\n").expect("scene file can be written");
-    println!("wrote {}", path.display());
+    for (name, animated) in [("whitted.gltf", false), ("whitted_animated.gltf", true)] {
+        let path = dir.join(name);
+        let text = serde_json::to_string_pretty(&whitted(animated)).expect("scene serializes");
+        std::fs::write(&path, text + "\n").expect("scene file can be written");
+        println!("wrote {}", path.display());
+    }
 }
