@@ -3,6 +3,7 @@
 //! never sees its layout. This module never sees a material, a light or a camera.
 
 pub mod build;
+pub mod instances;
 mod sah;
 pub mod stats;
 pub mod traverse;

@@ -4,6 +4,7 @@
 pub mod outputs;
 pub mod run;
 pub mod template;
+pub mod update;
 
 use crate::accel::SplitMethod;
 use crate::error::{Error, Result};

@@ -4,7 +4,8 @@
 
 use super::LoadedPipeline;
 use super::outputs::{StereoFrame, Writer};
-use crate::accel::{BuildParams, KdTree};
+use super::update::Updater;
+use crate::accel::BuildParams;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
 use crate::render::frame::{FilmParams, render_eye, tile_count};
@@ -155,9 +156,11 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         .collect();
     let mut summary = RunSummary::default();
     let mut log = vec![FRAME_LOG_HEADER.to_string()];
-    // The tree of the last frame and the positions it was built over: a frame whose posed
-    // triangles are identical (a static scene, or only the camera or lights animated) reuses it.
-    let mut current: Option<(Vec<glam::Vec3>, Vec<[u32; 3]>, KdTree)> = None;
+    let mut updater = Updater::new(
+        &p.scene,
+        &animations,
+        BuildParams::with_method(spec.accel.split),
+    );
     for (k, frame) in (start..=end).enumerate() {
         let tp = Instant::now();
         let time = frame as f32 / spec.frames.fps;
@@ -169,32 +172,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         let posed = pose::pose(&p.scene, &overrides);
         let pose_s = tp.elapsed().as_secs_f64();
 
-        let tu = Instant::now();
-        let unchanged = current.as_ref().is_some_and(|(pos, tris, _)| {
-            *pos == posed.geometry.positions && *tris == posed.geometry.triangles
-        });
-        let (action, reason) = if unchanged {
-            ("reuse", "posed triangles identical to the previous frame")
-        } else {
-            let triangles: Vec<[Vec3; 3]> = (0..posed.geometry.triangles.len())
-                .map(|i| posed.geometry.triangle(i))
-                .collect();
-            let tree = KdTree::build(triangles, BuildParams::with_method(spec.accel.split));
-            let first = current.is_none();
-            current = Some((
-                posed.geometry.positions.clone(),
-                posed.geometry.triangles.clone(),
-                tree,
-            ));
-            if first {
-                ("build", "first frame")
-            } else {
-                ("rebuild", "animation moved geometry")
-            }
-        };
-        let (_, _, tree) = current.as_ref().expect("a tree was built or kept above");
-        let update_s = tu.elapsed().as_secs_f64();
-
+        let (accel, update_rows) = updater.update(&posed);
         let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed);
         let lights = if posed.lights.is_empty() {
             vec![head_light(&camera_world, &posed)]
@@ -203,7 +181,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         };
         let integrator = Integrator {
             scene: SceneView {
-                accel: tree,
+                accel: &accel,
                 geometry: &posed.geometry,
                 materials: &p.scene.materials,
                 textures: &p.scene.textures,
@@ -262,13 +240,19 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             summary.eyes_traced += 1;
             stereo.views.push((name, image));
         }
-        log.push(format!(
-            "{frame},scene,{action},{reason},{pose_s:.6},{update_s:.6},{:.6},{:.6},{:.6},{:.3}",
-            view_seconds[0],
-            view_seconds[1],
-            view_seconds[2],
-            tree.stats().sah_cost
-        ));
+        for row in &update_rows {
+            log.push(format!(
+                "{frame},{},{},{},{pose_s:.6},{:.6},{:.6},{:.6},{:.6},{}",
+                csv_field(&row.object),
+                row.action,
+                csv_field(row.reason),
+                row.seconds,
+                view_seconds[0],
+                view_seconds[1],
+                view_seconds[2],
+                row.sah_cost.map(|c| format!("{c:.3}")).unwrap_or_default()
+            ));
+        }
         let t = Instant::now();
         for wr in &mut writers {
             summary.files.extend(wr.frame(&stereo)?);
@@ -296,8 +280,18 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     Ok(summary)
 }
 
+/// A CSV field, quoted when it holds a comma or a quote.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
 /// Columns of `frame-log.csv`: one row per frame and object, what the acceleration update did
-/// and why, and where the time went (`other_s`: views other than the two eyes).
+/// and why, and where the time went (`update_s` per object; `left_s`, `right_s`, `other_s`: the
+/// frame's tracing per view, repeated on each of its rows; `sah_cost` when a tree was built).
 pub const FRAME_LOG_HEADER: &str =
     "frame,object,action,reason,pose_s,update_s,left_s,right_s,other_s,sah_cost";
 

@@ -55,6 +55,8 @@ pub struct PosedScene {
     pub lights: Vec<Light>,
     /// Camera instances in scene traversal order.
     pub cameras: Vec<PosedCamera>,
+    /// World matrix of every node at this instant.
+    pub node_world: Vec<Mat4>,
 }
 
 /// World matrix of every node reachable from the roots, given each node's local matrix.
@@ -99,7 +101,10 @@ pub fn local_matrices(scene: &Scene, overrides: &[NodeOverrides]) -> Vec<Mat4> {
 /// `animation::sample`) may be empty for the rest pose.
 pub fn pose(scene: &Scene, overrides: &[NodeOverrides]) -> PosedScene {
     let world = world_matrices(scene, &local_matrices(scene, overrides));
-    let mut out = PosedScene::default();
+    let mut out = PosedScene {
+        node_world: world.clone(),
+        ..Default::default()
+    };
     for n in scene.traversal() {
         let node = &scene.nodes[n];
         let m = world[n];

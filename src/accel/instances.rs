@@ -1,0 +1,211 @@
+//! Two-level acceleration: a handful of parts, each a kd-tree with a mapping from its own
+//! triangle indices to the frame's global ones and, for rigid instances, the world-to-object
+//! transform. Static geometry is one part built once; a rigidly moving object is an instance (its
+//! object-space tree is built once and only its transform changes); a deforming object is a part
+//! rebuilt when it moves. The top level is the list of parts with their world bounds: a frame has
+//! few parts, so testing each box beats building a tree over them.
+//!
+//! Rays enter an instance through the inverse transform without renormalizing the direction, so
+//! hit distances are the same in both spaces and hits from all parts compare directly.
+
+use super::build::{Aabb, KdTree};
+use super::{Hit, Intersect, Ray};
+use glam::{Mat4, Vec3};
+use std::sync::Arc;
+
+/// How a part's triangle indices map to the frame's global triangle indices.
+#[derive(Clone, Debug)]
+pub enum PrimMap {
+    /// Global index = local index + offset (one object's contiguous range).
+    Offset(u32),
+    /// Global index = table[local index].
+    Table(Arc<Vec<u32>>),
+}
+
+impl PrimMap {
+    #[inline]
+    fn global(&self, local: u32) -> u32 {
+        match self {
+            PrimMap::Offset(o) => local + o,
+            PrimMap::Table(t) => t[local as usize],
+        }
+    }
+}
+
+#[derive(Clone)]
+pub struct Part {
+    pub tree: Arc<KdTree>,
+    pub map: PrimMap,
+    /// World-to-object transform of an instance; `None`: the tree is in world space.
+    pub world_to_object: Option<Mat4>,
+    /// World-space bounds of the part at this frame.
+    pub bounds: Aabb,
+}
+
+impl Part {
+    pub fn world(tree: Arc<KdTree>, map: PrimMap) -> Part {
+        let bounds = tree.bounds;
+        Part {
+            tree,
+            map,
+            world_to_object: None,
+            bounds,
+        }
+    }
+
+    /// An instance of an object-space tree placed by `object_to_world`.
+    pub fn instance(tree: Arc<KdTree>, map: PrimMap, object_to_world: Mat4) -> Part {
+        let b = tree.bounds;
+        let bounds = if b.is_empty() {
+            b
+        } else {
+            let corners: Vec<Vec3> = (0..8)
+                .map(|i| {
+                    let c = Vec3::new(
+                        if i & 1 == 0 { b.min.x } else { b.max.x },
+                        if i & 2 == 0 { b.min.y } else { b.max.y },
+                        if i & 4 == 0 { b.min.z } else { b.max.z },
+                    );
+                    object_to_world.transform_point3(c)
+                })
+                .collect();
+            Aabb::of_points(&corners)
+        };
+        Part {
+            tree,
+            map,
+            world_to_object: Some(object_to_world.inverse()),
+            bounds,
+        }
+    }
+
+    fn local_ray(&self, ray: &Ray) -> Ray {
+        match &self.world_to_object {
+            Some(m) => Ray::new(m.transform_point3(ray.origin), m.transform_vector3(ray.dir)),
+            None => *ray,
+        }
+    }
+}
+
+/// Slab test of a ray against a box within (0, t_max).
+fn hits_box(b: &Aabb, ray: &Ray, t_max: f32) -> bool {
+    if b.is_empty() {
+        return false;
+    }
+    let (mut t0, mut t1) = (0.0f32, t_max);
+    for axis in 0..3 {
+        let (o, d) = (ray.origin[axis], ray.dir[axis]);
+        if d == 0.0 {
+            if o < b.min[axis] || o > b.max[axis] {
+                return false;
+            }
+            continue;
+        }
+        let (mut near, mut far) = ((b.min[axis] - o) / d, (b.max[axis] - o) / d);
+        if near > far {
+            std::mem::swap(&mut near, &mut far);
+        }
+        t0 = t0.max(near);
+        t1 = t1.min(far);
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
+/// The frame's acceleration structure: its parts.
+#[derive(Clone, Default)]
+pub struct TwoLevel {
+    pub parts: Vec<Part>,
+}
+
+impl Intersect for TwoLevel {
+    fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        for part in &self.parts {
+            let limit = best.map_or(t_max, |h| h.t);
+            // The box test is conservative: instance boxes enclose the transformed object box.
+            if !hits_box(&part.bounds, ray, limit) {
+                continue;
+            }
+            if let Some(h) = part.tree.closest_hit(&part.local_ray(ray), limit) {
+                best = Some(Hit {
+                    prim: part.map.global(h.prim),
+                    ..h
+                });
+            }
+        }
+        best
+    }
+
+    fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
+        self.parts
+            .iter()
+            .any(|p| hits_box(&p.bounds, ray, t_max) && p.tree.any_hit(&p.local_ray(ray), t_max))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{BruteForce, BuildParams};
+    use super::*;
+    use crate::accel::test_rng::Lcg;
+    use glam::Quat;
+
+    #[test]
+    fn instances_and_world_parts_give_the_brute_force_hits() {
+        let mut rng = Lcg(5);
+        let soup = |rng: &mut Lcg, n: usize| -> Vec<[Vec3; 3]> {
+            (0..n)
+                .map(|_| {
+                    let c = rng.v(4.0);
+                    [c, c + rng.v(1.0) - 0.5, c + rng.v(1.0) - 0.5]
+                })
+                .collect()
+        };
+        let world_part = soup(&mut rng, 300);
+        let object = soup(&mut rng, 200);
+        let place = Mat4::from_scale_rotation_translation(
+            Vec3::splat(1.5),
+            Quat::from_rotation_y(0.7),
+            Vec3::new(3.0, 1.0, -2.0),
+        );
+        let placed: Vec<[Vec3; 3]> = object
+            .iter()
+            .map(|t| t.map(|v| place.transform_point3(v)))
+            .collect();
+        let mut all = world_part.clone();
+        all.extend(&placed);
+        let accel = TwoLevel {
+            parts: vec![
+                Part::world(
+                    Arc::new(KdTree::build(world_part, BuildParams::default())),
+                    PrimMap::Offset(0),
+                ),
+                Part::instance(
+                    Arc::new(KdTree::build(object, BuildParams::default())),
+                    PrimMap::Offset(300),
+                    place,
+                ),
+            ],
+        };
+        let brute = BruteForce { triangles: all };
+        for _ in 0..3000 {
+            let r = Ray::new(rng.v(12.0) - 4.0, rng.v(2.0) - 1.0);
+            let (a, b) = (
+                accel.closest_hit(&r, f32::INFINITY),
+                brute.closest_hit(&r, f32::INFINITY),
+            );
+            match (a, b) {
+                (Some(a), Some(b)) => {
+                    assert!((a.t - b.t).abs() <= 1e-4 * b.t.max(1.0), "{a:?} vs {b:?}");
+                    assert!(a.prim == b.prim || (a.t - b.t).abs() < 1e-4);
+                }
+                (None, None) => {}
+                (a, b) => panic!("{a:?} vs {b:?} for {r:?}"),
+            }
+            assert_eq!(accel.any_hit(&r, f32::INFINITY), b.is_some());
+        }
+    }
+}
