@@ -124,6 +124,34 @@ impl Aabb {
         }
     }
 
+    /// Parametric interval `(t0, t1)` of a ray inside the box, clipped to `(0, t_max)`; `None`
+    /// when it misses. Zero direction components are tested explicitly rather than through
+    /// inf/NaN arithmetic.
+    pub fn clip_ray(&self, ray: &super::Ray, t_max: f32) -> Option<(f32, f32)> {
+        let (mut t0, mut t1) = (0.0f32, t_max);
+        for axis in 0..3 {
+            let (o, d) = (ray.origin[axis], ray.dir[axis]);
+            let (lo, hi) = (self.min[axis], self.max[axis]);
+            if d == 0.0 {
+                if o < lo || o > hi {
+                    return None;
+                }
+                continue;
+            }
+            let inv = 1.0 / d;
+            let (mut near, mut far) = ((lo - o) * inv, (hi - o) * inv);
+            if near > far {
+                std::mem::swap(&mut near, &mut far);
+            }
+            t0 = t0.max(near);
+            t1 = t1.min(far);
+            if t0 > t1 {
+                return None;
+            }
+        }
+        Some((t0, t1))
+    }
+
     /// The two halves of the box cut at `pos` on `axis`.
     pub fn split(&self, axis: usize, pos: f32) -> (Aabb, Aabb) {
         let mut below = *self;

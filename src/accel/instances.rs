@@ -87,33 +87,6 @@ impl Part {
     }
 }
 
-/// Slab test of a ray against a box within (0, t_max).
-fn hits_box(b: &Aabb, ray: &Ray, t_max: f32) -> bool {
-    if b.is_empty() {
-        return false;
-    }
-    let (mut t0, mut t1) = (0.0f32, t_max);
-    for axis in 0..3 {
-        let (o, d) = (ray.origin[axis], ray.dir[axis]);
-        if d == 0.0 {
-            if o < b.min[axis] || o > b.max[axis] {
-                return false;
-            }
-            continue;
-        }
-        let (mut near, mut far) = ((b.min[axis] - o) / d, (b.max[axis] - o) / d);
-        if near > far {
-            std::mem::swap(&mut near, &mut far);
-        }
-        t0 = t0.max(near);
-        t1 = t1.min(far);
-        if t0 > t1 {
-            return false;
-        }
-    }
-    true
-}
-
 /// The frame's acceleration structure: its parts.
 #[derive(Clone, Default)]
 pub struct TwoLevel {
@@ -126,7 +99,7 @@ impl Intersect for TwoLevel {
         for part in &self.parts {
             let limit = best.map_or(t_max, |h| h.t);
             // The box test is conservative: instance boxes enclose the transformed object box.
-            if !hits_box(&part.bounds, ray, limit) {
+            if part.bounds.is_empty() || part.bounds.clip_ray(ray, limit).is_none() {
                 continue;
             }
             if let Some(h) = part.tree.closest_hit(&part.local_ray(ray), limit) {
@@ -140,9 +113,11 @@ impl Intersect for TwoLevel {
     }
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
-        self.parts
-            .iter()
-            .any(|p| hits_box(&p.bounds, ray, t_max) && p.tree.any_hit(&p.local_ray(ray), t_max))
+        self.parts.iter().any(|p| {
+            !p.bounds.is_empty()
+                && p.bounds.clip_ray(ray, t_max).is_some()
+                && p.tree.any_hit(&p.local_ray(ray), t_max)
+        })
     }
 }
 

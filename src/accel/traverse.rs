@@ -10,32 +10,6 @@ use super::{Hit, Intersect, Ray};
 const STACK: usize = MAX_DEPTH as usize + 4;
 
 impl KdTree {
-    /// Parametric interval of the ray inside the tree's bounds, clipped to `(0, t_max)`.
-    fn clip(&self, ray: &Ray, t_max: f32) -> Option<(f32, f32)> {
-        let (mut t0, mut t1) = (0.0f32, t_max);
-        for axis in 0..3 {
-            let (o, d) = (ray.origin[axis], ray.dir[axis]);
-            let (lo, hi) = (self.bounds.min[axis], self.bounds.max[axis]);
-            if d == 0.0 {
-                if o < lo || o > hi {
-                    return None;
-                }
-                continue;
-            }
-            let inv = 1.0 / d;
-            let (mut near, mut far) = ((lo - o) * inv, (hi - o) * inv);
-            if near > far {
-                std::mem::swap(&mut near, &mut far);
-            }
-            t0 = t0.max(near);
-            t1 = t1.min(far);
-            if t0 > t1 {
-                return None;
-            }
-        }
-        Some((t0, t1))
-    }
-
     /// Shared walk: `on_leaf` tests a leaf's triangles against the current best distance and
     /// returns the new best; it returns `true` in `stop` to end the walk (any-hit).
     #[inline]
@@ -43,7 +17,7 @@ impl KdTree {
         if self.nodes.is_empty() || self.bounds.is_empty() {
             return;
         }
-        let Some((mut t_min, mut t_far)) = self.clip(ray, t_max) else {
+        let Some((mut t_min, mut t_far)) = self.bounds.clip_ray(ray, t_max) else {
             return;
         };
         let mut best = t_max;
