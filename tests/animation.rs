@@ -164,6 +164,7 @@ fn a_frame_rendered_alone_equals_the_same_frame_inside_a_range() {
 #[test]
 fn every_frame_of_animated_models_hits_what_brute_force_hits() {
     use stereotrace::accel::{BruteForce, BuildParams, Intersect, Ray};
+    use stereotrace::pipeline::UpdateMode;
     use stereotrace::pipeline::update::Updater;
     for model in [
         "BoxAnimated/BoxAnimated.glb",
@@ -172,45 +173,47 @@ fn every_frame_of_animated_models_hits_what_brute_force_hits() {
     ] {
         let scene = load(model);
         let anims: Vec<_> = scene.animations.iter().collect();
-        let mut updater = Updater::new(&scene, &anims, BuildParams::default());
-        let mut seed = 17u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 40) as f32) / (1u64 << 24) as f32
-        };
-        for frame in (0..48).step_by(4) {
-            let overrides = animation::sample(&anims, scene.nodes.len(), frame as f32 / 24.0);
-            let posed = pose::pose(&scene, &overrides);
-            let (accel, rows) = updater.update(&posed);
-            assert!(!rows.is_empty());
-            let g = &posed.geometry;
-            let brute = BruteForce {
-                triangles: (0..g.triangles.len()).map(|i| g.triangle(i)).collect(),
+        for mode in [UpdateMode::Rebuild, UpdateMode::Refit, UpdateMode::Auto] {
+            let mut updater = Updater::new(&scene, &anims, BuildParams::default(), mode, 1.3);
+            let mut seed = 17u64;
+            let mut rnd = move || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((seed >> 40) as f32) / (1u64 << 24) as f32
             };
-            let (lo, hi) = g.bounds().unwrap();
-            let size = hi - lo;
-            for _ in 0..400 {
-                let from = lo - size + Vec3::new(rnd(), rnd(), rnd()) * size * 3.0;
-                let to = lo + Vec3::new(rnd(), rnd(), rnd()) * size;
-                let r = Ray::new(from, to - from);
-                let (a, b) = (
-                    accel.closest_hit(&r, f32::INFINITY),
-                    brute.closest_hit(&r, f32::INFINITY),
-                );
-                match (a, b) {
-                    (Some(a), Some(b)) => assert!(
-                        (a.t - b.t).abs() <= 1e-4 * b.t.max(1.0),
-                        "{model} frame {frame}: {a:?} vs {b:?}"
-                    ),
-                    (None, None) => {}
-                    // A ray grazing an instanced edge may round to the other side of it.
-                    (a, b) => {
-                        let near_edge = a.or(b).is_some_and(|h| {
-                            h.b1 < 1e-4 || h.b2 < 1e-4 || h.b1 + h.b2 > 1.0 - 1e-4
-                        });
-                        assert!(near_edge, "{model} frame {frame}: {a:?} vs {b:?}");
+            for frame in (0..48).step_by(4) {
+                let overrides = animation::sample(&anims, scene.nodes.len(), frame as f32 / 24.0);
+                let posed = pose::pose(&scene, &overrides);
+                let (accel, rows) = updater.update(&posed);
+                assert!(!rows.is_empty());
+                let g = &posed.geometry;
+                let brute = BruteForce {
+                    triangles: (0..g.triangles.len()).map(|i| g.triangle(i)).collect(),
+                };
+                let (lo, hi) = g.bounds().unwrap();
+                let size = hi - lo;
+                for _ in 0..400 {
+                    let from = lo - size + Vec3::new(rnd(), rnd(), rnd()) * size * 3.0;
+                    let to = lo + Vec3::new(rnd(), rnd(), rnd()) * size;
+                    let r = Ray::new(from, to - from);
+                    let (a, b) = (
+                        accel.closest_hit(&r, f32::INFINITY),
+                        brute.closest_hit(&r, f32::INFINITY),
+                    );
+                    match (a, b) {
+                        (Some(a), Some(b)) => assert!(
+                            (a.t - b.t).abs() <= 1e-4 * b.t.max(1.0),
+                            "{model} frame {frame}: {a:?} vs {b:?}"
+                        ),
+                        (None, None) => {}
+                        // A ray grazing an instanced edge may round to the other side of it.
+                        (a, b) => {
+                            let near_edge = a.or(b).is_some_and(|h| {
+                                h.b1 < 1e-4 || h.b2 < 1e-4 || h.b1 + h.b2 > 1.0 - 1e-4
+                            });
+                            assert!(near_edge, "{model} {mode:?} frame {frame}: {a:?} vs {b:?}");
+                        }
                     }
                 }
             }

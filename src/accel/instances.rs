@@ -34,7 +34,7 @@ impl PrimMap {
 
 #[derive(Clone)]
 pub struct Part {
-    pub tree: Arc<KdTree>,
+    pub accel: Arc<dyn Intersect + Send + Sync>,
     pub map: PrimMap,
     /// World-to-object transform of an instance; `None`: the tree is in world space.
     pub world_to_object: Option<Mat4>,
@@ -43,10 +43,22 @@ pub struct Part {
 }
 
 impl Part {
+    /// A world-space tree.
     pub fn world(tree: Arc<KdTree>, map: PrimMap) -> Part {
         let bounds = tree.bounds;
         Part {
-            tree,
+            accel: tree,
+            map,
+            world_to_object: None,
+            bounds,
+        }
+    }
+
+    /// A world-space tree refitted to deformed triangles.
+    pub fn refitted(tree: Arc<super::refit::RefitTree>, map: PrimMap) -> Part {
+        let bounds = tree.bounds();
+        Part {
+            accel: tree,
             map,
             world_to_object: None,
             bounds,
@@ -72,7 +84,7 @@ impl Part {
             Aabb::of_points(&corners)
         };
         Part {
-            tree,
+            accel: tree,
             map,
             world_to_object: Some(object_to_world.inverse()),
             bounds,
@@ -102,7 +114,7 @@ impl Intersect for TwoLevel {
             if part.bounds.is_empty() || part.bounds.clip_ray(ray, limit).is_none() {
                 continue;
             }
-            if let Some(h) = part.tree.closest_hit(&part.local_ray(ray), limit) {
+            if let Some(h) = part.accel.closest_hit(&part.local_ray(ray), limit) {
                 best = Some(Hit {
                     prim: part.map.global(h.prim),
                     ..h
@@ -116,7 +128,7 @@ impl Intersect for TwoLevel {
         self.parts.iter().any(|p| {
             !p.bounds.is_empty()
                 && p.bounds.clip_ray(ray, t_max).is_some()
-                && p.tree.any_hit(&p.local_ray(ray), t_max)
+                && p.accel.any_hit(&p.local_ray(ray), t_max)
         })
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod build;
 pub mod instances;
+pub mod refit;
 mod sah;
 pub mod stats;
 pub mod traverse;

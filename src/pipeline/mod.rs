@@ -133,11 +133,26 @@ pub enum UpdateMode {
     Auto,
 }
 
-#[derive(Clone, Debug, Deserialize, Default)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct AccelSection {
     pub split: SplitMethod,
+    /// How deforming meshes follow their animation.
     pub update: UpdateMode,
+    /// `auto` rebuilds when the refitted tree's SAH cost exceeds this multiple of its cost at
+    /// the last build's pose. 1.3 (30% drift) is a starting point in the range reported for
+    /// refitted BVHs (Lauterbach et al. 2006 rebuild at roughly 1.2-1.5x); bench it per scene.
+    pub auto_threshold: f32,
+}
+
+impl Default for AccelSection {
+    fn default() -> Self {
+        AccelSection {
+            split: SplitMethod::Sah,
+            update: UpdateMode::Auto,
+            auto_threshold: 1.3,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq, Default)]
@@ -556,6 +571,13 @@ fn validate_values(p: &Pipeline) -> std::result::Result<Vec<PathTemplate>, Inval
                 "convergence must be a finite number > 0, got {}",
                 s.convergence
             ),
+        ));
+    }
+    let a = &p.accel.auto_threshold;
+    if !(a.is_finite() && *a >= 1.0) {
+        return Err(invalid(
+            &[N("accel"), N("auto_threshold")],
+            format!("auto_threshold must be a finite number >= 1, got {a}"),
         ));
     }
     let f = &p.frames;

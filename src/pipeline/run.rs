@@ -160,6 +160,8 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         &p.scene,
         &animations,
         BuildParams::with_method(spec.accel.split),
+        spec.accel.update,
+        spec.accel.auto_threshold,
     );
     for (k, frame) in (start..=end).enumerate() {
         let tp = Instant::now();

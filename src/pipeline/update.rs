@@ -4,12 +4,16 @@
 //!   objects, built on the first frame and reused;
 //! - rigid (it or an ancestor has animated TRS, no skin, no animated weights): an instance, its
 //!   object-space tree built once and placed by the node's world matrix each frame;
-//! - deforming (skinned with moving joints, or animated morph weights): its own tree, rebuilt on a
-//!   frame where its triangles changed, reused where they did not.
+//! - deforming (skinned with moving joints, or animated morph weights): its own tree, reused on a
+//!   frame where its triangles did not change; otherwise, by `[accel] update`: `rebuild`, `refit`
+//!   (the topology kept, bounded-kd-tree planes refitted), or `auto` (refit, and rebuild once the
+//!   refitted SAH cost exceeds `auto_threshold` times its cost at the last build's pose).
 //!
 //! Every frame logs one row per object (the static ones as one row): action, reason, time.
 
+use super::UpdateMode;
 use crate::accel::instances::{Part, PrimMap, TwoLevel};
+use crate::accel::refit::RefitTree;
 use crate::accel::{BuildParams, KdTree};
 use crate::scene::Scene;
 use crate::scene::animation::{Animation, Property};
@@ -46,10 +50,14 @@ pub struct LogRow {
 
 pub struct Updater {
     params: BuildParams,
+    mode: UpdateMode,
+    auto_threshold: f64,
+    /// Per deforming object: the topology last built, the refitted cost at its build pose (the
+    /// baseline `auto` measures drift against), and the part in use.
+    deforming: Vec<Option<Deforming>>,
     objects: Vec<Object>,
     static_part: Option<Part>,
-    /// Per object: its tree (object space for rigid, world space for deforming) and, for
-    /// deforming ones, the world triangles it was built over.
+    /// Per rigid object: its object-space tree.
     trees: Vec<Option<BuiltTree>>,
     /// Per rigid object: its triangles in object space, taken from the rest pose so that the
     /// instance tree does not depend on which frame a render starts at (a frame rendered alone
@@ -59,8 +67,21 @@ pub struct Updater {
 
 type BuiltTree = (Arc<KdTree>, Vec<[Vec3; 3]>);
 
+struct Deforming {
+    topology: Arc<KdTree>,
+    baseline: f64,
+    triangles: Vec<[Vec3; 3]>,
+    part: Part,
+}
+
 impl Updater {
-    pub fn new(scene: &Scene, animations: &[&Animation], params: BuildParams) -> Updater {
+    pub fn new(
+        scene: &Scene,
+        animations: &[&Animation],
+        params: BuildParams,
+        mode: UpdateMode,
+        auto_threshold: f32,
+    ) -> Updater {
         let mut parent = vec![None; scene.nodes.len()];
         for (i, n) in scene.nodes.iter().enumerate() {
             for &c in &n.children {
@@ -124,8 +145,12 @@ impl Updater {
                 })
             })
             .collect();
+        let deforming = objects.iter().map(|_| None).collect();
         Updater {
             params,
+            mode,
+            auto_threshold: auto_threshold as f64,
+            deforming,
             objects,
             static_part: None,
             trees,
@@ -147,20 +172,24 @@ impl Updater {
             .filter(|o| o.kind == Kind::Static)
             .collect();
         if !statics.is_empty() {
-            let (action, reason) = if self.static_part.is_none() {
+            let (action, reason, sah_cost) = if self.static_part.is_none() {
                 let ids: Vec<u32> = statics
                     .iter()
                     .flat_map(|o| o.first..o.first + o.count)
                     .collect();
                 let tris = ids.iter().map(|&i| tri(i)).collect();
                 let tree = Arc::new(KdTree::build(tris, self.params));
+                let cost = tree.stats().sah_cost;
                 self.static_part = Some(Part::world(tree, PrimMap::Table(Arc::new(ids))));
-                ("build", "static geometry, built once for the whole range")
+                (
+                    "build",
+                    "static geometry, built once for the whole range",
+                    Some(cost),
+                )
             } else {
-                ("reuse", "static geometry")
+                ("reuse", "static geometry", None)
             };
             let part = self.static_part.clone().expect("built above");
-            let sah_cost = (action == "build").then(|| part.tree.stats().sah_cost);
             parts.push(part);
             rows.push(LogRow {
                 object: "static".into(),
@@ -171,70 +200,116 @@ impl Updater {
             });
         }
 
-        for ((o, slot), local) in self
+        let (params, mode, threshold) = (self.params, self.mode, self.auto_threshold);
+        for (((o, slot), local), deforming) in self
             .objects
             .iter()
             .zip(self.trees.iter_mut())
             .zip(&self.object_space)
+            .zip(self.deforming.iter_mut())
         {
             if o.kind == Kind::Static {
                 continue;
             }
             let t = Instant::now();
-            let (action, reason) = match o.kind {
-                Kind::Rigid => {
-                    let world = posed.node_world[o.node];
-                    let reason = if slot.is_none() {
-                        let local = local
-                            .clone()
-                            .expect("rigid objects have object-space triangles");
-                        *slot = Some((Arc::new(KdTree::build(local, self.params)), Vec::new()));
-                        "rigid motion: object-space tree built once"
-                    } else {
-                        "rigid motion: transform updated"
-                    };
-                    let tree = slot.as_ref().expect("built above").0.clone();
-                    parts.push(Part::instance(tree, PrimMap::Offset(o.first), world));
-                    ("instance", reason)
-                }
-                _ => {
-                    let world_tris: Vec<[Vec3; 3]> =
-                        (o.first..o.first + o.count).map(tri).collect();
-                    let unchanged = slot.as_ref().is_some_and(|(_, built)| *built == world_tris);
-                    let first = slot.is_none();
-                    if !unchanged {
-                        let tree = Arc::new(KdTree::build(world_tris.clone(), self.params));
-                        *slot = Some((tree, world_tris));
-                    }
-                    let tree = slot.as_ref().expect("built above").0.clone();
-                    parts.push(Part::world(tree, PrimMap::Offset(o.first)));
-                    match (first, unchanged) {
-                        (true, _) => ("build", "deforming mesh (skin or morph weights)"),
-                        (false, true) => ("reuse", "deforming mesh did not change this frame"),
-                        (false, false) => {
-                            ("rebuild", "deforming mesh changed (refit not implemented)")
-                        }
-                    }
-                }
+            let (part, action, reason, sah_cost) = if o.kind == Kind::Rigid {
+                let world = posed.node_world[o.node];
+                let (reason, cost) = if slot.is_none() {
+                    let local = local
+                        .clone()
+                        .expect("rigid objects have object-space triangles");
+                    let tree = Arc::new(KdTree::build(local, params));
+                    let cost = tree.stats().sah_cost;
+                    *slot = Some((tree, Vec::new()));
+                    ("rigid motion: object-space tree built once", Some(cost))
+                } else {
+                    ("rigid motion: transform updated", None)
+                };
+                let tree = slot.as_ref().expect("built above").0.clone();
+                (
+                    Part::instance(tree, PrimMap::Offset(o.first), world),
+                    "instance",
+                    reason,
+                    cost,
+                )
+            } else {
+                let tris: Vec<[Vec3; 3]> = (o.first..o.first + o.count).map(tri).collect();
+                deform(deforming, tris, o.first, params, mode, threshold)
             };
-            let seconds = t.elapsed().as_secs_f64();
-            let built = reason.contains("built once") || action == "build" || action == "rebuild";
-            let sah_cost = built.then(|| {
-                parts
-                    .last()
-                    .expect("a part was pushed")
-                    .tree
-                    .stats()
-                    .sah_cost
-            });
+            parts.push(part);
             rows.push(LogRow {
                 object: o.name.clone(),
                 action,
                 reason,
-                seconds,
+                seconds: t.elapsed().as_secs_f64(),
                 sah_cost,
             });
         }
         (TwoLevel { parts }, rows)
     }
+}
+
+/// One deforming object's update: build, reuse, refit or rebuild (see the module comment).
+/// Returns the part, the action and reason for the log, and the SAH cost of the tree used.
+fn deform(
+    slot: &mut Option<Deforming>,
+    tris: Vec<[Vec3; 3]>,
+    first: u32,
+    params: BuildParams,
+    mode: UpdateMode,
+    threshold: f64,
+) -> (Part, &'static str, &'static str, Option<f64>) {
+    let build = |tris: Vec<[Vec3; 3]>| {
+        let topology = Arc::new(KdTree::build(tris.clone(), params));
+        let baseline = RefitTree::refit(topology.clone(), tris.clone()).sah_cost();
+        let part = Part::world(topology.clone(), PrimMap::Offset(first));
+        Deforming {
+            topology,
+            baseline,
+            triangles: tris,
+            part,
+        }
+    };
+    let Some(d) = slot.as_mut() else {
+        let d = build(tris);
+        let cost = d.topology.stats().sah_cost;
+        let part = d.part.clone();
+        *slot = Some(d);
+        return (
+            part,
+            "build",
+            "deforming mesh (skin or morph weights): first frame",
+            Some(cost),
+        );
+    };
+    if d.triangles == tris {
+        return (
+            d.part.clone(),
+            "reuse",
+            "deforming mesh did not change this frame",
+            None,
+        );
+    }
+    if mode != UpdateMode::Rebuild {
+        let refit = Arc::new(RefitTree::refit(d.topology.clone(), tris.clone()));
+        let cost = refit.sah_cost();
+        if mode == UpdateMode::Refit || cost <= threshold * d.baseline {
+            d.part = Part::refitted(refit, PrimMap::Offset(first));
+            d.triangles = tris;
+            let reason = if mode == UpdateMode::Refit {
+                "update = refit: topology kept, bounds refitted"
+            } else {
+                "auto: refitted cost within the threshold of the last build"
+            };
+            return (d.part.clone(), "refit", reason, Some(cost));
+        }
+    }
+    let reason = if mode == UpdateMode::Rebuild {
+        "update = rebuild: deforming mesh changed"
+    } else {
+        "auto: refitted cost drifted past the threshold of the last build"
+    };
+    *d = build(tris);
+    let cost = d.topology.stats().sah_cost;
+    (d.part.clone(), "rebuild", reason, Some(cost))
 }
