@@ -139,9 +139,9 @@ pub struct AccelSection {
     pub split: SplitMethod,
     /// How deforming meshes follow their animation.
     pub update: UpdateMode,
-    /// `auto` rebuilds when the refitted tree's SAH cost exceeds this multiple of its cost at
-    /// the last build's pose. 1.3 (30% drift) is a starting point in the range reported for
-    /// refitted BVHs (Lauterbach et al. 2006 rebuild at roughly 1.2-1.5x); bench it per scene.
+    /// `auto` rebuilds when the refitted tree's SAH cost exceeds this multiple of the last fresh
+    /// build's SAH cost. 1.3 (a 30% drift) is a starting point, not a measured optimum: the
+    /// frame log's costs and times show where a scene's break-even lies.
     pub auto_threshold: f32,
 }
 

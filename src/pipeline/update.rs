@@ -7,7 +7,9 @@
 //! - deforming (skinned with moving joints, or animated morph weights): its own tree, reused on a
 //!   frame where its triangles did not change; otherwise, by `[accel] update`: `rebuild`, `refit`
 //!   (the topology kept, bounded-kd-tree planes refitted), or `auto` (refit, and rebuild once the
-//!   refitted SAH cost exceeds `auto_threshold` times its cost at the last build's pose).
+//!   refitted SAH cost exceeds `auto_threshold` times the last fresh build's cost). Refitted
+//!   planes bound whole triangles where the perfect-split build referenced clipped pieces, so a
+//!   refit costs tree quality at once, not only as the mesh drifts; `auto` measures exactly that.
 //!
 //! Every frame logs one row per object (the static ones as one row): action, reason, time.
 
@@ -52,8 +54,8 @@ pub struct Updater {
     params: BuildParams,
     mode: UpdateMode,
     auto_threshold: f64,
-    /// Per deforming object: the topology last built, the refitted cost at its build pose (the
-    /// baseline `auto` measures drift against), and the part in use.
+    /// Per deforming object: the topology last built, its fresh SAH cost (the baseline `auto`
+    /// measures drift against), and the part in use.
     deforming: Vec<Option<Deforming>>,
     objects: Vec<Object>,
     static_part: Option<Part>,
@@ -261,7 +263,7 @@ fn deform(
 ) -> (Part, &'static str, &'static str, Option<f64>) {
     let build = |tris: Vec<[Vec3; 3]>| {
         let topology = Arc::new(KdTree::build(tris.clone(), params));
-        let baseline = RefitTree::refit(topology.clone(), tris.clone()).sah_cost();
+        let baseline = topology.stats().sah_cost;
         let part = Part::world(topology.clone(), PrimMap::Offset(first));
         Deforming {
             topology,
@@ -299,7 +301,7 @@ fn deform(
             let reason = if mode == UpdateMode::Refit {
                 "update = refit: topology kept, bounds refitted"
             } else {
-                "auto: refitted cost within the threshold of the last build"
+                "auto: refitted cost within the threshold of the last fresh build"
             };
             return (d.part.clone(), "refit", reason, Some(cost));
         }
@@ -307,7 +309,7 @@ fn deform(
     let reason = if mode == UpdateMode::Rebuild {
         "update = rebuild: deforming mesh changed"
     } else {
-        "auto: refitted cost drifted past the threshold of the last build"
+        "auto: refitted cost past the threshold of the last fresh build"
     };
     *d = build(tris);
     let cost = d.topology.stats().sah_cost;
