@@ -60,14 +60,12 @@ pub struct Updater {
     objects: Vec<Object>,
     static_part: Option<Part>,
     /// Per rigid object: its object-space tree.
-    trees: Vec<Option<BuiltTree>>,
+    trees: Vec<Option<Arc<KdTree>>>,
     /// Per rigid object: its triangles in object space, taken from the rest pose so that the
     /// instance tree does not depend on which frame a render starts at (a frame rendered alone
     /// must equal the same frame inside a range, bit for bit).
     object_space: Vec<Option<Vec<[Vec3; 3]>>>,
 }
-
-type BuiltTree = (Arc<KdTree>, Vec<[Vec3; 3]>);
 
 struct Deforming {
     topology: Arc<KdTree>,
@@ -222,12 +220,12 @@ impl Updater {
                         .expect("rigid objects have object-space triangles");
                     let tree = Arc::new(KdTree::build(local, params));
                     let cost = tree.stats().sah_cost;
-                    *slot = Some((tree, Vec::new()));
+                    *slot = Some(tree);
                     ("rigid motion: object-space tree built once", Some(cost))
                 } else {
                     ("rigid motion: transform updated", None)
                 };
-                let tree = slot.as_ref().expect("built above").0.clone();
+                let tree = slot.clone().expect("built above");
                 (
                     Part::instance(tree, PrimMap::Offset(o.first), world),
                     "instance",
