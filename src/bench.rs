@@ -196,7 +196,7 @@ fn load(spec: &str) -> Result<(String, Vec<[Vec3; 3]>, Mat4, f32)> {
     let scene = Scene::load(path)?;
     let posed = pose::pose(&scene, &[]);
     let g = &posed.geometry;
-    let tris = (0..g.triangles.len()).map(|i| g.triangle(i)).collect();
+    let tris = g.triangle_list();
     let (lo, hi) = g.bounds().unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
     let (world, yfov) = match posed.cameras.first() {
         Some(c) => (c.world, scene.cameras[c.camera].yfov),

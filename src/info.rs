@@ -35,10 +35,7 @@ pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
     let posed = pose::pose(scene, &[]);
     let count = |f: fn(&LightKind) -> bool| scene.lights.iter().filter(|l| f(&l.kind)).count();
     let accel = accel.map(|m| {
-        let tris = (0..posed.geometry.triangles.len())
-            .map(|i| posed.geometry.triangle(i))
-            .collect();
-        KdTree::build(tris, BuildParams::with_method(m)).stats()
+        KdTree::build(posed.geometry.triangle_list(), BuildParams::with_method(m)).stats()
     });
     SceneInfo {
         file: scene.source.display().to_string(),

@@ -189,7 +189,7 @@ fn every_frame_of_animated_models_hits_what_brute_force_hits() {
                 assert!(!rows.is_empty());
                 let g = &posed.geometry;
                 let brute = BruteForce {
-                    triangles: (0..g.triangles.len()).map(|i| g.triangle(i)).collect(),
+                    triangles: g.triangle_list(),
                 };
                 let (lo, hi) = g.bounds().unwrap();
                 let size = hi - lo;

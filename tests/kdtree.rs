@@ -184,7 +184,7 @@ fn real_meshes() {
         let scene = Scene::load(&common::shared().join("scenes").join(model)).unwrap();
         let posed = pose::pose(&scene, &[]);
         let g = &posed.geometry;
-        let tris: Vec<[Vec3; 3]> = (0..g.triangles.len()).map(|i| g.triangle(i)).collect();
+        let tris: Vec<[Vec3; 3]> = g.triangle_list();
         let rays = rays_through(&tris, 2000, &mut Rng(3));
         check(model, tris, &rays);
     }

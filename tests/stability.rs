@@ -82,7 +82,7 @@ fn integrate(
     bg: Vec3,
     rays: &[Ray],
 ) -> Vec<Vec3> {
-    let tris = (0..g.triangles.len()).map(|i| g.triangle(i)).collect();
+    let tris = g.triangle_list();
     let tree = KdTree::build(tris, BuildParams::default());
     let integ = Integrator {
         scene: SceneView {

@@ -128,17 +128,15 @@ impl RefitTree {
                 };
                 (a <= b).then_some((a, b))
             };
-            let children = [
-                (i as usize + 1, slab(below_max, true)),
-                (i as usize + n.above_offset(), slab(above_min, false)),
-            ];
-            // Push the farther child first so the nearer one is popped next.
-            let mut present: Vec<(usize, f32, f32)> = children
-                .iter()
-                .filter_map(|&(c, iv)| iv.map(|(a, b)| (c, a, b)))
-                .collect();
-            present.sort_by(|x, y| y.1.total_cmp(&x.1));
-            for (c, a, b) in present {
+            let below = slab(below_max, true).map(|(a, b)| (i as usize + 1, a, b));
+            let above = slab(above_min, false).map(|(a, b)| (i as usize + n.above_offset(), a, b));
+            // Push the farther child first so the nearer one is popped next (no allocation:
+            // this runs at every inner node a ray visits).
+            let (first, second) = match (below, above) {
+                (Some(x), Some(y)) if y.1 < x.1 => (Some(x), Some(y)),
+                (x, y) => (y, x),
+            };
+            for (c, a, b) in [first, second].into_iter().flatten() {
                 stack[sp] = (c as u32, a, b);
                 sp += 1;
             }

@@ -272,7 +272,7 @@ fn deform(
     };
     let Some(d) = slot.as_mut() else {
         let d = build(tris);
-        let cost = d.topology.stats().sah_cost;
+        let cost = d.baseline;
         let part = d.part.clone();
         *slot = Some(d);
         return (
@@ -310,6 +310,6 @@ fn deform(
         "auto: refitted cost past the threshold of the last fresh build"
     };
     *d = build(tris);
-    let cost = d.topology.stats().sah_cost;
+    let cost = d.baseline;
     (d.part.clone(), "rebuild", reason, Some(cost))
 }

@@ -29,6 +29,13 @@ impl Geometry {
         ]
     }
 
+    /// Every triangle's three world-space vertices, in triangle order (what `accel/` builds on).
+    pub fn triangle_list(&self) -> Vec<[Vec3; 3]> {
+        (0..self.triangles.len())
+            .map(|i| self.triangle(i))
+            .collect()
+    }
+
     /// Axis-aligned bounds of every vertex; `None` for an empty scene.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
