@@ -5,9 +5,14 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use stereotrace::accel::SplitMethod;
+use stereotrace::bench::{accel, memory, sweep};
 use stereotrace::pipeline::LoadedPipeline;
 use stereotrace::pipeline::run::{RunOptions, run};
-use stereotrace::{Error, bench, compare, info};
+use stereotrace::{Error, compare, info};
+
+/// Counts heap bytes so that `bench sweep` can report each combination's peak.
+#[global_allocator]
+static ALLOCATOR: memory::CountingAllocator = memory::CountingAllocator;
 
 #[derive(Parser)]
 #[command(
@@ -139,6 +144,41 @@ enum BenchCommand {
         /// Worker threads (0 = all cores).
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Also draw the table as a chart: CHART.svg and CHART.png (build time against trace
+        /// time, Pareto front per scene).
+        #[arg(long)]
+        chart: Option<PathBuf>,
+    },
+    /// Render a pipeline for every combination of swept keys; time each and measure its error
+    /// against a high-quality render. Writes results.csv, summary.csv and chart.svg/.png.
+    Sweep {
+        /// Pipeline file (TOML).
+        pipeline: PathBuf,
+        /// KEY=V1,V2,...: a pipeline key by path and the values to try (repeatable), e.g.
+        /// accel.split=center,sah  render.spp=1,4,16  render.shading=phong,cook-torrance.
+        #[arg(long = "sweep", value_parser = sweep::parse_sweep)]
+        sweeps: Vec<(String, Vec<String>)>,
+        /// Runs per combination; times are medians with the fastest and slowest run.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Folder for the results.
+        #[arg(long, default_value = "out/sweep")]
+        out: PathBuf,
+        /// Frame range A..B (inclusive), overriding the pipeline's [frames].
+        #[arg(long, value_parser = parse_range)]
+        frames: Option<(u32, u32)>,
+        /// Samples per pixel of the high-quality render [default: 4x the most swept, at least 64].
+        #[arg(long)]
+        reference_spp: Option<u32>,
+        /// Recursion depth of the high-quality render [default: the deepest swept].
+        #[arg(long)]
+        reference_depth: Option<u32>,
+        /// Per-channel error above which a pixel counts as wrong.
+        #[arg(long, default_value_t = 0.02)]
+        threshold: f32,
+        /// Worker threads (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
     },
 }
 
@@ -157,6 +197,13 @@ impl From<SplitArg> for SplitMethod {
             SplitArg::Sah => SplitMethod::Sah,
         }
     }
+}
+
+fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, Error> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::input(std::path::Path::new("--threads"), e.to_string()))
 }
 
 fn parse_range(s: &str) -> Result<(u32, u32), String> {
@@ -386,8 +433,9 @@ fn execute(command: Command) -> Result<(), Error> {
             save_rays,
             film,
             threads,
+            chart,
         }) => {
-            let opts = bench::AccelBenchOptions {
+            let opts = accel::AccelBenchOptions {
                 scenes,
                 splits: split.into_iter().map(SplitMethod::from).collect(),
                 repeat,
@@ -398,12 +446,57 @@ fn execute(command: Command) -> Result<(), Error> {
                 brute_force_budget: 2e9,
                 save_rays,
             };
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| Error::input(std::path::Path::new("--threads"), e.to_string()))?;
-            println!("{}", bench::CSV_HEADER);
-            pool.install(|| bench::bench_accel(&opts, |row| println!("{}", row.csv())))?;
+            println!("{}", accel::CSV_HEADER);
+            let rows = thread_pool(threads)?
+                .install(|| accel::bench_accel(&opts, |row| println!("{}", row.csv())))?;
+            if let Some(stem) = chart {
+                sweep::chart_accel(&rows, &stem, (film as usize).pow(2))?;
+            }
+            Ok(())
+        }
+        Command::Bench(BenchCommand::Sweep {
+            pipeline,
+            sweeps,
+            repeat,
+            out,
+            frames,
+            reference_spp,
+            reference_depth,
+            threshold,
+            threads,
+        }) => {
+            let opts = sweep::SweepOptions {
+                pipeline,
+                sweeps,
+                repeat,
+                out_dir: out.clone(),
+                frames,
+                reference_spp,
+                reference_depth,
+                threshold,
+            };
+            let results = thread_pool(threads)?
+                .install(|| sweep::sweep(&opts, |line| eprintln!("{line}")))?;
+            println!(
+                "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8}",
+                "combination", "s/frame", "Mrays/s", "peak MB", "mean |err|", "PSNR"
+            );
+            for r in &results {
+                println!(
+                    "{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2}",
+                    r.label(),
+                    r.frame_seconds(),
+                    r.mrays_per_second(),
+                    r.peak_bytes
+                        .map_or("-".into(), |b| format!("{:.1}", b as f64 / 1048576.0)),
+                    r.mean_abs_error(),
+                    r.psnr()
+                );
+            }
+            eprintln!(
+                "wrote {0}/results.csv, {0}/summary.csv, {0}/chart.svg and {0}/chart.png",
+                out.display()
+            );
             Ok(())
         }
         Command::Compare { .. } => unreachable!("compare is dispatched before execute"),

@@ -4,6 +4,7 @@
 pub mod outputs;
 pub mod run;
 pub mod template;
+pub mod trace;
 pub mod update;
 
 use crate::accel::SplitMethod;
@@ -16,6 +17,7 @@ use crate::scene::Scene;
 use serde::Deserialize;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use template::PathTemplate;
 
 #[derive(Clone, Debug, Deserialize)]
@@ -367,12 +369,76 @@ impl OutputSpec {
     }
 }
 
+/// Sets `key` (dotted, with `[i]` for an array element: `output[0].method`) to `value`, parsed as
+/// a TOML value, or taken as a string when it is not one (`sah`, `cook-torrance`).
+fn set_key(doc: &mut toml_edit::DocumentMut, key: &str, value: &str) -> Result<(), String> {
+    use toml_edit::{Item, Table, TableLike, Value};
+    let parsed = value
+        .parse::<Value>()
+        .unwrap_or_else(|_| Value::from(value));
+    let segments: Vec<&str> = key.split('.').collect();
+    let (last, path) = segments
+        .split_last()
+        .expect("split yields at least one part");
+    if last.is_empty() || last.contains('[') {
+        return Err(format!("key '{key}' must end in a key name"));
+    }
+    let mut table: &mut dyn TableLike = doc.as_table_mut();
+    for segment in path {
+        let (name, index) = match segment.split_once('[') {
+            Some((n, rest)) => {
+                let i = rest
+                    .strip_suffix(']')
+                    .and_then(|r| r.parse::<usize>().ok())
+                    .ok_or_else(|| format!("key '{key}': bad index in '{segment}'"))?;
+                (n, Some(i))
+            }
+            None => (*segment, None),
+        };
+        if name.is_empty() {
+            return Err(format!("key '{key}' has an empty part"));
+        }
+        if index.is_none() && table.get(name).is_none() {
+            table.insert(name, Item::Table(Table::new()));
+        }
+        let item = table
+            .get_mut(name)
+            .ok_or_else(|| format!("key '{key}': the pipeline has no '{name}'"))?;
+        table = match (item, index) {
+            (Item::ArrayOfTables(a), Some(i)) => {
+                let len = a.len();
+                a.get_mut(i)
+                    .map(|t| t as &mut dyn TableLike)
+                    .ok_or_else(|| format!("key '{key}': '{name}' has {len} entries, no [{i}]"))?
+            }
+            (Item::Value(Value::Array(a)), Some(i)) => {
+                let len = a.len();
+                a.get_mut(i)
+                    .and_then(|v| v.as_inline_table_mut())
+                    .map(|t| t as &mut dyn TableLike)
+                    .ok_or_else(|| {
+                        format!("key '{key}': '{name}' has {len} entries, no table at [{i}]")
+                    })?
+            }
+            (item, None) => item
+                .as_table_like_mut()
+                .ok_or_else(|| format!("key '{key}': '{name}' is not a table"))?,
+            (_, Some(_)) => return Err(format!("key '{key}': '{name}' is not an array")),
+        };
+    }
+    table.insert(last, Item::Value(parsed));
+    Ok(())
+}
+
 /// A pipeline file read, checked and with its scene loaded: ready to render.
 #[derive(Debug)]
 pub struct LoadedPipeline {
     pub file: PathBuf,
+    /// The pipeline text the spec was parsed from (`bench sweep` edits it key by key).
+    pub source: String,
     pub spec: Pipeline,
-    pub scene: Scene,
+    /// Shared, so that pipelines derived by `with_overrides` reuse the loaded scene.
+    pub scene: Arc<Scene>,
     pub scene_path: PathBuf,
     pub templates: Vec<PathTemplate>,
     /// Index into `PosedScene::cameras` (scene traversal order), `None`: the default camera.
@@ -443,6 +509,41 @@ impl LoadedPipeline {
     /// no file is written.
     pub fn load(file: &Path) -> Result<LoadedPipeline> {
         let src = std::fs::read_to_string(file).map_err(|e| Error::io(file, e))?;
+        Self::from_source(file, src, None)
+    }
+
+    /// The same pipeline with keys set by path (`accel.split`, `render.spp`,
+    /// `output[0].method`), each value written as in the TOML file (a bare word is a string).
+    /// The edited pipeline is validated like a file; the scene is reused unless a key changes it.
+    pub fn with_overrides(&self, overrides: &[(String, String)]) -> Result<LoadedPipeline> {
+        let mut doc = self
+            .source
+            .parse::<toml_edit::DocumentMut>()
+            .map_err(|e| Error::input(&self.file, format!("cannot edit the pipeline: {e}")))?;
+        for (key, value) in overrides {
+            set_key(&mut doc, key, value).map_err(|m| Error::input(&self.file, m))?;
+        }
+        let described = overrides
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ");
+        Self::from_source(&self.file, doc.to_string(), Some(self)).map_err(|e| {
+            // Line numbers of the edited text would point at nothing the user wrote.
+            let why = match e {
+                Error::Pipeline { message, .. } => message,
+                other => other.to_string(),
+            };
+            Error::input(&self.file, format!("with {described}: {why}"))
+        })
+    }
+
+    /// Parses and validates pipeline text; `previous` lends its scene when the path is the same.
+    fn from_source(
+        file: &Path,
+        src: String,
+        previous: Option<&LoadedPipeline>,
+    ) -> Result<LoadedPipeline> {
         let spec = Pipeline::parse(file, &src)?;
         let at = |inv: Invalid| {
             let (line, column) =
@@ -463,7 +564,10 @@ impl LoadedPipeline {
                 format!("scene file '{}' does not exist", scene_path.display()),
             )));
         }
-        let scene = Scene::load(&scene_path)?;
+        let scene = match previous {
+            Some(p) if p.scene_path == scene_path => Arc::clone(&p.scene),
+            _ => Arc::new(Scene::load(&scene_path)?),
+        };
         let mut warnings = scene.warnings.clone();
         let camera_instance = resolve_camera(&spec, &scene, &mut warnings).map_err(at)?;
         if !scene.nodes.iter().any(|n| n.light.is_some()) {
@@ -483,6 +587,7 @@ impl LoadedPipeline {
         }
         Ok(LoadedPipeline {
             file: file.to_path_buf(),
+            source: src,
             spec,
             scene,
             scene_path,

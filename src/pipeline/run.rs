@@ -3,19 +3,12 @@
 //! scene -> accel -> render -> outputs.
 
 use super::LoadedPipeline;
-use super::outputs::{StereoFrame, Writer};
-use super::update::Updater;
-use crate::accel::BuildParams;
+use super::outputs::Writer;
+use super::trace::FrameTracer;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
-use crate::render::frame::{FilmParams, render_eye, tile_count};
-use crate::render::sampling::hash32;
-use crate::render::{Eye, EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings};
-use crate::scene::animation;
-use crate::scene::camera::framing_camera;
-use crate::scene::light::{Light, LightKind};
-use crate::scene::pose::{self, PosedScene};
-use glam::{Mat4, Vec3};
+use crate::render::frame::tile_count;
+use crate::render::{Eye, RayCounts};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::Write;
 use std::path::PathBuf;
@@ -43,44 +36,6 @@ pub struct RunSummary {
     /// Time spent turning traced frames into files (all outputs).
     pub output_seconds: f64,
     pub files: Vec<PathBuf>,
-}
-
-/// The camera placement and lens for a frame, with the scene's fallbacks applied.
-fn frame_camera(p: &LoadedPipeline, posed: &PosedScene) -> (Mat4, f32, f32, Option<f32>) {
-    match p.camera_instance {
-        Some(i) => {
-            let pc = &posed.cameras[i];
-            let def = &p.scene.cameras[pc.camera];
-            (pc.world, def.yfov, def.znear, def.zfar)
-        }
-        None => {
-            let (lo, hi) = posed
-                .geometry
-                .bounds()
-                .unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
-            let (def, world) = framing_camera(lo, hi);
-            (world, def.yfov, def.znear, def.zfar)
-        }
-    }
-}
-
-/// A scene without lights gets a head-light: a point light at the rig's centre whose intensity is
-/// `pi * d^2` (d: distance to the centre of the scene's bounds), so a white diffuse surface facing
-/// the camera at the centre has radiance 1.
-fn head_light(camera: &Mat4, posed: &PosedScene) -> Light {
-    let position = camera.transform_point3(Vec3::ZERO);
-    let center = posed
-        .geometry
-        .bounds()
-        .map_or(Vec3::ZERO, |(lo, hi)| (lo + hi) * 0.5);
-    let d2 = (center - position).length_squared().max(1e-6);
-    Light {
-        kind: LightKind::Point,
-        power: Vec3::splat(std::f32::consts::PI * d2),
-        position,
-        direction: camera.transform_vector3(Vec3::NEG_Z),
-        range: None,
-    }
 }
 
 fn bar(multi: &MultiProgress, len: u64, template: &str) -> ProgressBar {
@@ -146,7 +101,6 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         "tiles  {bar:30} {pos}/{len} eta {eta} {msg}",
     );
 
-    let animations = p.selected_animations();
     let mut writers: Vec<Writer> = p
         .spec
         .outputs
@@ -156,98 +110,31 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         .collect();
     let mut summary = RunSummary::default();
     let mut log = vec![FRAME_LOG_HEADER.to_string()];
-    let mut updater = Updater::new(
-        &p.scene,
-        &animations,
-        BuildParams::with_method(spec.accel.split),
-        spec.accel.update,
-        spec.accel.auto_threshold,
-    );
+    let mut tracer = FrameTracer::new(p);
     for (k, frame) in (start..=end).enumerate() {
-        let tp = Instant::now();
-        let time = frame as f32 / spec.frames.fps;
-        let overrides = if animations.is_empty() {
-            Vec::new()
-        } else {
-            animation::sample(&animations, p.scene.nodes.len(), time)
-        };
-        let posed = pose::pose(&p.scene, &overrides);
-        let pose_s = tp.elapsed().as_secs_f64();
-
-        let (accel, update_rows) = updater.update(&posed);
-        let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed);
-        let lights = if posed.lights.is_empty() {
-            vec![head_light(&camera_world, &posed)]
-        } else {
-            posed.lights.clone()
-        };
-        let integrator = Integrator {
-            scene: SceneView {
-                accel: &accel,
-                geometry: &posed.geometry,
-                materials: &p.scene.materials,
-                textures: &p.scene.textures,
-                lights: &lights,
-            },
-            settings: TraceSettings {
-                max_depth: spec.render.max_depth,
-                shading: spec.render.shading,
-                background: Vec3::from(spec.render.background),
-            },
-        };
-        let rig = RigParams {
-            rig: spec.stereo.rig,
-            interaxial: spec.stereo.interaxial,
-            convergence: spec.stereo.convergence,
-            width: spec.render.width,
-            height: spec.render.height,
-            yfov,
-            znear,
-            zfar,
-        };
-
         tile_bar.reset();
         let views = views_needed(p, &eyes, k);
         tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
-        let mut stereo = StereoFrame {
-            frame,
-            views: Vec::new(),
-        };
+        tile_bar.set_message(format!("frame {frame}"));
+        let (stereo, stats) = tracer.trace(frame, &views, &|_| tile_bar.inc(1));
         let mut view_seconds = [0f64; 3];
-        for (name, fraction) in views {
-            tile_bar.set_message(format!("frame {frame} {name}"));
-            let x_e = if spec.stereo.rig == crate::render::Rig::Mono {
-                0.0
-            } else {
-                spec.stereo.interaxial * fraction
-            };
-            let camera = EyeCamera::at_offset(camera_world, &rig, x_e);
-            let film = FilmParams {
-                width: w,
-                height: h,
-                spp: spec.render.spp,
-                frame,
-                eye_seed: view_seed(&name),
-            };
-            let t = Instant::now();
-            let (image, counts) = render_eye(&integrator, &camera, &film, &|| tile_bar.inc(1));
-            let secs = t.elapsed().as_secs_f64();
+        for (name, secs) in &stats.view_seconds {
             view_seconds[match name.as_str() {
                 "left" => 0,
                 "right" => 1,
                 _ => 2,
             }] += secs;
-            summary.trace_seconds += secs;
-            summary.rays.add(&counts);
-            summary.eyes_traced += 1;
-            stereo.views.push((name, image));
         }
-        for row in &update_rows {
+        summary.trace_seconds += stats.trace_seconds();
+        summary.rays.add(&stats.rays);
+        summary.eyes_traced += stats.view_seconds.len();
+        for row in &stats.update {
             log.push(format!(
-                "{frame},{},{},{},{pose_s:.6},{:.6},{:.6},{:.6},{:.6},{}",
+                "{frame},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{}",
                 csv_field(&row.object),
                 row.action,
                 csv_field(row.reason),
+                stats.pose_seconds,
                 row.seconds,
                 view_seconds[0],
                 view_seconds[1],
@@ -316,15 +203,4 @@ fn views_needed(p: &LoadedPipeline, eyes: &[Eye], k: usize) -> Vec<(String, f32)
     };
     views.sort_by(|a, b| rank(&a.0).cmp(&rank(&b.0)).then(a.1.total_cmp(&b.1)));
     views
-}
-
-/// Sampling seed of a view: the eyes keep their historical seeds (0, 1, 2) so stored regression
-/// clips stay valid; intermediate views hash their name.
-fn view_seed(name: &str) -> u32 {
-    match name {
-        "left" => Eye::Left as u32,
-        "right" => Eye::Right as u32,
-        "center" => Eye::Center as u32,
-        _ => name.bytes().fold(0x5eed_u32, |h, b| hash32(h ^ b as u32)),
-    }
 }

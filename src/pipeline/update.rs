@@ -41,6 +41,7 @@ struct Object {
 }
 
 /// One row of the frame log.
+#[derive(Clone, Debug)]
 pub struct LogRow {
     pub object: String,
     pub action: &'static str,

@@ -1,5 +1,4 @@
-//! `stereotrace bench`: speed measurements of method choices. `bench accel` times kd-tree builds
-//! and ray throughput per split strategy on a ladder of meshes, with brute force (and, with the
+//! `bench accel`: times kd-tree builds and ray throughput per split strategy on a ladder of meshes, with brute force (and, with the
 //! `baselines` cargo feature, the `bvh` crate) measured on the identical rays in the same run.
 
 use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod};

@@ -1,0 +1,602 @@
+//! `bench sweep`: renders a pipeline's frames for every combination of swept keys, times each
+//! combination and measures its error against a high-quality render of the same frames.
+//!
+//! Keys are pipeline keys by path (`accel.split`, `render.spp`), set through
+//! `LoadedPipeline::with_overrides`, so any method switch the pipeline has can be swept and every
+//! value is validated as in a file. The high-quality render of a combination is the same pipeline
+//! with a fresh SAH build every frame, `reference_spp` samples and `reference_depth` bounces; the
+//! combinations that differ only in those keys share it (one per shading model, say).
+//!
+//! Outputs: `results.csv` (one row per combination and frame), `summary.csv` (one row per
+//! combination: the chart's table) and `chart.svg` / `chart.png`.
+
+use super::chart::{self, Chart, Front, Point, Series};
+use super::memory;
+use crate::compare::{Comparison, Planes, Thresholds, compare};
+use crate::error::{Error, Result};
+use crate::output::image::Image;
+use crate::output::write_atomic;
+use crate::pipeline::LoadedPipeline;
+use crate::pipeline::trace::{FrameTracer, rig_views};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Keys set by path, with their values.
+type Overrides = Vec<(String, String)>;
+/// The views of one frame by name.
+type FrameViews = Vec<(String, Planes)>;
+
+/// Keys the high-quality render sets itself; every other swept key is part of what it renders.
+const SPP: &str = "render.spp";
+const DEPTH: &str = "render.max_depth";
+const SPLIT: &str = "accel.split";
+const UPDATE: &str = "accel.update";
+
+#[derive(Clone, Debug)]
+pub struct SweepOptions {
+    pub pipeline: PathBuf,
+    /// Swept keys with their values, in the order given: the first varies slowest.
+    pub sweeps: Vec<(String, Vec<String>)>,
+    pub repeat: usize,
+    pub out_dir: PathBuf,
+    /// Inclusive frame range overriding the pipeline's.
+    pub frames: Option<(u32, u32)>,
+    /// Samples per pixel of the high-quality render (default: 4x the most any combination
+    /// uses, at least 64).
+    pub reference_spp: Option<u32>,
+    /// Recursion depth of the high-quality render (default: the deepest any combination uses).
+    pub reference_depth: Option<u32>,
+    /// Per-channel error above which a pixel counts as wrong (`compare --fail`).
+    pub threshold: f32,
+}
+
+/// Accuracy of one eye against the high-quality render.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EyeError {
+    pub mean_abs: f64,
+    pub psnr: f64,
+    pub percent_over: f64,
+}
+
+impl EyeError {
+    fn from(c: &Comparison) -> EyeError {
+        EyeError {
+            mean_abs: c.mean_error,
+            psnr: c.psnr,
+            percent_over: c.percent_failed(),
+        }
+    }
+}
+
+/// One combination at one frame; times are over the repeats.
+#[derive(Clone, Debug)]
+pub struct FrameRow {
+    pub frame: u32,
+    pub update_s: f64,
+    /// Tracing of every eye.
+    pub trace_s: f64,
+    /// Pose, acceleration update and tracing of every eye: median, fastest and slowest repeat.
+    pub frame_s: f64,
+    pub frame_s_min: f64,
+    pub frame_s_max: f64,
+    pub rays: u64,
+    pub eyes: Vec<(String, EyeError)>,
+}
+
+#[derive(Clone, Debug)]
+pub struct CombinationResult {
+    /// The swept keys and the values of this combination.
+    pub values: Vec<(String, String)>,
+    pub frames: Vec<FrameRow>,
+    /// Peak heap bytes over the combination's repeats (when the counting allocator is in use).
+    pub peak_bytes: Option<usize>,
+}
+
+impl CombinationResult {
+    /// `split=sah update=auto`: the last part of each key with its value.
+    pub fn label(&self) -> String {
+        self.values
+            .iter()
+            .map(|(k, v)| format!("{}={v}", k.rsplit('.').next().unwrap_or(k)))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    /// Time per stereo frame, the mean over frames of each frame's median: the builds of the
+    /// first frame are amortized over the range as a render of the range would see them.
+    pub fn frame_seconds(&self) -> f64 {
+        mean(self.frames.iter().map(|f| f.frame_s))
+    }
+
+    pub fn update_seconds(&self) -> f64 {
+        mean(self.frames.iter().map(|f| f.update_s))
+    }
+
+    pub fn mrays_per_second(&self) -> f64 {
+        let rays: u64 = self.frames.iter().map(|f| f.rays).sum();
+        let secs: f64 = self.frames.iter().map(|f| f.trace_s).sum();
+        rays as f64 * 1e-6 / secs.max(1e-12)
+    }
+
+    fn eye_errors(&self) -> impl Iterator<Item = &EyeError> {
+        self.frames
+            .iter()
+            .flat_map(|f| f.eyes.iter().map(|(_, e)| e))
+    }
+
+    pub fn mean_abs_error(&self) -> f64 {
+        mean(self.eye_errors().map(|e| e.mean_abs))
+    }
+
+    pub fn psnr(&self) -> f64 {
+        mean(self.eye_errors().map(|e| e.psnr))
+    }
+
+    pub fn percent_over(&self) -> f64 {
+        mean(self.eye_errors().map(|e| e.percent_over))
+    }
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 { f64::NAN } else { sum / n as f64 }
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
+
+/// Every combination of the swept values, the first key varying slowest.
+pub fn combinations(sweeps: &[(String, Vec<String>)]) -> Vec<Vec<(String, String)>> {
+    let mut out = vec![Vec::new()];
+    for (key, values) in sweeps {
+        out = out
+            .into_iter()
+            .flat_map(|prefix: Vec<(String, String)>| {
+                values.iter().map(move |v| {
+                    let mut c = prefix.clone();
+                    c.push((key.clone(), v.clone()));
+                    c
+                })
+            })
+            .collect();
+    }
+    out
+}
+
+/// Parses `KEY=V1,V2,...`.
+pub fn parse_sweep(arg: &str) -> Result<(String, Vec<String>), String> {
+    let (key, values) = arg
+        .split_once('=')
+        .ok_or_else(|| format!("'{arg}' is not KEY=V1,V2,..."))?;
+    let key = key.trim();
+    let values: Vec<String> = values.split(',').map(|v| v.trim().to_string()).collect();
+    if key.is_empty() || values.iter().any(|v| v.is_empty()) {
+        return Err(format!("'{arg}' is not KEY=V1,V2,... (empty key or value)"));
+    }
+    Ok((key.to_string(), values))
+}
+
+/// The overrides of the high-quality render that goes with a combination.
+fn reference_overrides(combo: &[(String, String)], spp: u32, depth: u32) -> Vec<(String, String)> {
+    let mut r: Vec<(String, String)> = combo
+        .iter()
+        .filter(|(k, _)| ![SPP, DEPTH, SPLIT, UPDATE].contains(&k.as_str()))
+        .cloned()
+        .collect();
+    r.push((SPP.into(), spp.to_string()));
+    r.push((DEPTH.into(), depth.to_string()));
+    r.push((SPLIT.into(), "sah".into()));
+    r.push((UPDATE.into(), "rebuild".into()));
+    r
+}
+
+/// The frames of a pipeline's range (or the override), traced once: per frame, the rig's views.
+fn trace_frames(
+    p: &LoadedPipeline,
+    frames: (u32, u32),
+) -> Vec<(Vec<(String, Image)>, crate::pipeline::trace::FrameStats)> {
+    let views = rig_views(p);
+    let mut tracer = FrameTracer::new(p);
+    (frames.0..=frames.1)
+        .map(|f| {
+            let (traced, stats) = tracer.trace(f, &views, &|_| {});
+            (traced.views, stats)
+        })
+        .collect()
+}
+
+/// Runs the sweep and writes its files; `progress` hears each combination as it finishes.
+pub fn sweep(
+    opts: &SweepOptions,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<CombinationResult>> {
+    let base = LoadedPipeline::load(&opts.pipeline)?;
+    for (key, _) in &opts.sweeps {
+        if opts.sweeps.iter().filter(|(k, _)| k == key).count() > 1 {
+            return Err(Error::input(
+                &opts.pipeline,
+                format!("--sweep {key} is given twice"),
+            ));
+        }
+    }
+    let frames = opts
+        .frames
+        .unwrap_or((base.spec.frames.start, base.spec.frames.end));
+    if frames.1 < frames.0 {
+        return Err(Error::input(
+            &opts.pipeline,
+            format!("frame range {}..{} is empty", frames.0, frames.1),
+        ));
+    }
+    // Every combination is validated before anything is traced.
+    let combos = combinations(&opts.sweeps);
+    let pipelines: Vec<LoadedPipeline> = combos
+        .iter()
+        .map(|c| base.with_overrides(c))
+        .collect::<Result<_>>()?;
+    let ref_spp = opts.reference_spp.unwrap_or_else(|| {
+        let most = pipelines
+            .iter()
+            .map(|p| p.spec.render.spp)
+            .max()
+            .unwrap_or(1);
+        most.saturating_mul(4).clamp(64, 65536)
+    });
+    let ref_depth = opts.reference_depth.unwrap_or_else(|| {
+        pipelines
+            .iter()
+            .map(|p| p.spec.render.max_depth)
+            .max()
+            .unwrap_or(8)
+    });
+
+    // One high-quality render per distinct reference, kept for every combination that uses it.
+    let mut references: Vec<(Overrides, Vec<FrameViews>)> = Vec::new();
+    for c in &combos {
+        let key = reference_overrides(c, ref_spp, ref_depth);
+        if references.iter().any(|(k, _)| *k == key) {
+            continue;
+        }
+        let rp = base.with_overrides(&key)?;
+        progress(&format!(
+            "reference {} ({ref_spp} spp, depth {ref_depth})",
+            describe(&key)
+        ));
+        let planes = trace_frames(&rp, frames)
+            .into_iter()
+            .map(|(views, _)| {
+                views
+                    .iter()
+                    .map(|(n, img)| (n.clone(), Planes::from_image(img)))
+                    .collect()
+            })
+            .collect();
+        references.push((key, planes));
+    }
+
+    let thresholds = Thresholds {
+        fail: opts.threshold,
+        warn: opts.threshold,
+        ..Thresholds::default()
+    };
+    // Repeats go round all combinations, so that a slow spell of a shared machine spreads over
+    // every combination instead of landing on one.
+    let n = (frames.1 - frames.0 + 1) as usize;
+    let mut samples: Vec<Samples> = (0..combos.len()).map(|_| Samples::new(n)).collect();
+    for r in 0..opts.repeat.max(1) {
+        for (ci, (c, p)) in combos.iter().zip(&pipelines).enumerate() {
+            let key = reference_overrides(c, ref_spp, ref_depth);
+            let reference = &references
+                .iter()
+                .find(|(k, _)| *k == key)
+                .expect("every combination's reference was rendered above")
+                .1;
+            let s = &mut samples[ci];
+            memory::reset_peak();
+            for (k, (views, stats)) in trace_frames(p, frames).into_iter().enumerate() {
+                s.update_s[k].push(stats.update_seconds());
+                s.trace_s[k].push(stats.trace_seconds());
+                s.frame_s[k]
+                    .push(stats.pose_seconds + stats.update_seconds() + stats.trace_seconds());
+                s.rays[k] = stats.rays.total();
+                if r == 0 {
+                    s.eyes[k] = views
+                        .iter()
+                        .map(|(name, img)| {
+                            let reference = reference[k]
+                                .iter()
+                                .find(|(n, _)| n == name)
+                                .map(|(_, planes)| planes)
+                                .expect("a combination traces the views of its reference");
+                            let c = compare(&Planes::from_image(img), reference, &thresholds);
+                            (name.clone(), EyeError::from(&c))
+                        })
+                        .collect();
+                }
+            }
+            s.peak = memory::peak_bytes().map(|b| b.max(s.peak.unwrap_or(0)));
+            if r + 1 == opts.repeat.max(1) {
+                progress(&format!("{} measured", describe(c)));
+            }
+        }
+    }
+    let results: Vec<CombinationResult> = combos
+        .into_iter()
+        .zip(samples)
+        .map(|(values, s)| s.result(values, frames.0))
+        .collect();
+    write_files(opts, &results, ref_spp, ref_depth)?;
+    Ok(results)
+}
+
+/// What the repeats of one combination measured, per frame.
+struct Samples {
+    update_s: Vec<Vec<f64>>,
+    trace_s: Vec<Vec<f64>>,
+    frame_s: Vec<Vec<f64>>,
+    rays: Vec<u64>,
+    eyes: Vec<Vec<(String, EyeError)>>,
+    peak: Option<usize>,
+}
+
+impl Samples {
+    fn new(frames: usize) -> Samples {
+        Samples {
+            update_s: vec![Vec::new(); frames],
+            trace_s: vec![Vec::new(); frames],
+            frame_s: vec![Vec::new(); frames],
+            rays: vec![0; frames],
+            eyes: vec![Vec::new(); frames],
+            peak: None,
+        }
+    }
+
+    fn result(self, values: Vec<(String, String)>, first_frame: u32) -> CombinationResult {
+        let frames = (self.eyes.into_iter().enumerate())
+            .map(|(k, eyes)| FrameRow {
+                frame: first_frame + k as u32,
+                update_s: median(&self.update_s[k]),
+                trace_s: median(&self.trace_s[k]),
+                frame_s: median(&self.frame_s[k]),
+                frame_s_min: self.frame_s[k]
+                    .iter()
+                    .copied()
+                    .fold(f64::INFINITY, f64::min),
+                frame_s_max: self.frame_s[k].iter().copied().fold(0.0, f64::max),
+                rays: self.rays[k],
+                eyes,
+            })
+            .collect();
+        CombinationResult {
+            values,
+            frames,
+            peak_bytes: self.peak,
+        }
+    }
+}
+
+fn describe(overrides: &[(String, String)]) -> String {
+    overrides
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Columns of `results.csv` after the swept keys.
+pub const RESULTS_COLUMNS: &str = "frame,update_s,trace_s,frame_s,frame_s_min,frame_s_max,rays,mrays_s,peak_mb,eye,mean_abs_error,psnr,percent_over";
+
+/// Columns of `summary.csv` after the swept keys.
+pub const SUMMARY_COLUMNS: &str =
+    "label,frame_s,update_s,mrays_s,peak_mb,mean_abs_error,psnr,percent_over,pareto";
+
+fn write_files(
+    opts: &SweepOptions,
+    results: &[CombinationResult],
+    ref_spp: u32,
+    ref_depth: u32,
+) -> Result<()> {
+    std::fs::create_dir_all(&opts.out_dir).map_err(|e| Error::io(&opts.out_dir, e))?;
+    let keys: Vec<&str> = opts.sweeps.iter().map(|(k, _)| k.as_str()).collect();
+    let head = |rest: &str| {
+        let mut h = keys.join(",");
+        if !h.is_empty() {
+            h.push(',');
+        }
+        h + rest
+    };
+    let values = |r: &CombinationResult| {
+        r.values
+            .iter()
+            .map(|(_, v)| format!("{v},"))
+            .collect::<String>()
+    };
+    let mb = |r: &CombinationResult| {
+        r.peak_bytes
+            .map(|b| format!("{:.1}", b as f64 / (1 << 20) as f64))
+            .unwrap_or_default()
+    };
+    write_atomic(&opts.out_dir.join("results.csv"), |w| {
+        writeln!(w, "{}", head(RESULTS_COLUMNS))?;
+        for r in results {
+            for f in &r.frames {
+                for (eye, e) in &f.eyes {
+                    writeln!(
+                        w,
+                        "{}{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{:.3},{},{eye},{:.6},{:.2},{:.4}",
+                        values(r),
+                        f.frame,
+                        f.update_s,
+                        f.trace_s,
+                        f.frame_s,
+                        f.frame_s_min,
+                        f.frame_s_max,
+                        f.rays,
+                        f.rays as f64 * 1e-6 / f.trace_s.max(1e-12),
+                        mb(r),
+                        e.mean_abs,
+                        e.psnr,
+                        e.percent_over
+                    )?;
+                }
+            }
+        }
+        Ok(())
+    })?;
+
+    let points: Vec<Point> = results
+        .iter()
+        .map(|r| Point {
+            label: r.label(),
+            x: r.frame_seconds(),
+            y: r.mean_abs_error(),
+        })
+        .collect();
+    let front = chart::pareto_front(&points);
+    write_atomic(&opts.out_dir.join("summary.csv"), |w| {
+        writeln!(w, "{}", head(SUMMARY_COLUMNS))?;
+        for (i, r) in results.iter().enumerate() {
+            writeln!(
+                w,
+                "{}{},{:.6},{:.6},{:.3},{},{:.6},{:.2},{:.4},{}",
+                values(r),
+                r.label(),
+                r.frame_seconds(),
+                r.update_seconds(),
+                r.mrays_per_second(),
+                mb(r),
+                r.mean_abs_error(),
+                r.psnr(),
+                r.percent_over(),
+                front.contains(&i)
+            )?;
+        }
+        Ok(())
+    })?;
+
+    // One colour per value of the first swept key; the front runs over all combinations.
+    let mut series: Vec<Series> = Vec::new();
+    for (r, p) in results.iter().zip(points) {
+        let name = r
+            .values
+            .first()
+            .map_or_else(|| "pipeline".to_string(), |(k, v)| format!("{k}={v}"));
+        match series.iter_mut().find(|s| s.name == name) {
+            Some(s) => s.points.push(p),
+            None => series.push(Series {
+                name,
+                points: vec![p],
+            }),
+        }
+    }
+    let name = opts
+        .pipeline
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    chart::write(
+        &Chart {
+            title: format!(
+                "{name}: time per stereo frame against error ({ref_spp} spp, depth {ref_depth} reference)"
+            ),
+            x_label: "time per stereo frame (s)".into(),
+            y_label: "mean absolute error vs reference".into(),
+            series,
+            front: Front::Global,
+        },
+        &opts.out_dir.join("chart"),
+    )
+}
+
+/// Charts a `bench accel` table: build time against the time to trace its rays, one series per
+/// scene, a Pareto front per scene. Returns the chart's stem.
+pub fn chart_accel(rows: &[super::accel::AccelRow], stem: &Path, rays: usize) -> Result<()> {
+    let mut series: Vec<Series> = Vec::new();
+    for r in rows {
+        let trace_s = rays as f64 * 1e-6 / r.primary_mrays_s.max(1e-12);
+        let p = Point {
+            label: r.method.clone(),
+            x: r.build_s,
+            y: trace_s,
+        };
+        match series.iter_mut().find(|s| s.name == r.scene) {
+            Some(s) => s.points.push(p),
+            None => series.push(Series {
+                name: r.scene.clone(),
+                points: vec![p],
+            }),
+        }
+    }
+    chart::write(
+        &Chart {
+            title: "kd-tree split strategies: build time against trace time".into(),
+            x_label: "build time (s)".into(),
+            y_label: format!("time to trace {rays} primary rays (s)"),
+            series,
+            front: Front::PerSeries,
+        },
+        stem,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn combinations_vary_the_first_key_slowest() {
+        let s = vec![
+            ("a".to_string(), vec!["1".to_string(), "2".to_string()]),
+            (
+                "b".to_string(),
+                vec!["x".to_string(), "y".to_string(), "z".to_string()],
+            ),
+        ];
+        let c = combinations(&s);
+        assert_eq!(c.len(), 6);
+        assert_eq!(
+            c[0],
+            vec![("a".into(), "1".into()), ("b".into(), "x".into())]
+        );
+        assert_eq!(
+            c[3],
+            vec![("a".into(), "2".into()), ("b".into(), "x".into())]
+        );
+        assert_eq!(combinations(&[]), vec![Vec::new()]);
+    }
+
+    #[test]
+    fn sweep_arguments_need_a_key_and_values() {
+        assert_eq!(
+            parse_sweep("render.spp=1, 4,16").unwrap(),
+            (
+                "render.spp".into(),
+                vec!["1".into(), "4".into(), "16".into()]
+            )
+        );
+        assert!(parse_sweep("render.spp").is_err());
+        assert!(parse_sweep("render.spp=1,,4").is_err());
+        assert!(parse_sweep("=1").is_err());
+    }
+
+    #[test]
+    fn the_reference_replaces_speed_keys_and_keeps_the_others() {
+        let c = vec![
+            ("render.shading".to_string(), "phong".to_string()),
+            ("render.spp".to_string(), "4".to_string()),
+            ("accel.update".to_string(), "refit".to_string()),
+        ];
+        let r = reference_overrides(&c, 256, 12);
+        assert!(r.contains(&("render.shading".into(), "phong".into())));
+        assert!(r.contains(&("render.spp".into(), "256".into())));
+        assert!(r.contains(&("render.max_depth".into(), "12".into())));
+        assert!(r.contains(&("accel.update".into(), "rebuild".into())));
+        assert_eq!(r.len(), 5);
+    }
+}
