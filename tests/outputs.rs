@@ -141,16 +141,6 @@ path = "wobble_{{frame:04}}.gif"
 }
 
 #[test]
-fn an_output_that_needs_one_eye_traces_one() {
-    let (out, s) = render(
-        "outputs-one-eye",
-        "[[output]]\nkind = \"pseudo-stereo\"\neye = \"right\"\ndelay = 2\npath = \"p_{frame:04}.png\"\n",
-    );
-    assert_eq!(s.eyes_traced, 4);
-    assert!(out.join("p_0003.png").is_file());
-}
-
-#[test]
 fn display_space_anaglyphs_equal_ffmpeg_stereo3d_within_one_code_value() {
     if !ffmpeg() {
         return;

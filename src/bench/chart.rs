@@ -121,8 +121,14 @@ fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
 fn log_ticks(r: &std::ops::Range<f64>) -> Vec<f64> {
     let mut ticks = Vec::new();
     let mut decade = 10f64.powf(r.start.log10().floor());
+    // Many decades get a tick per decade; a few get 1, 2, 5 in each.
+    let multiples: &[f64] = if (r.end / r.start).log10() > 3.0 {
+        &[1.0]
+    } else {
+        &[1.0, 2.0, 5.0]
+    };
     while decade <= r.end {
-        for m in [1.0, 2.0, 5.0] {
+        for &m in multiples {
             let v = m * decade;
             if r.contains(&v) {
                 ticks.push(v);
@@ -142,10 +148,14 @@ fn tick_label(v: &f64) -> String {
     if *v == 0.0 || !v.is_finite() {
         return format!("{v}");
     }
-    let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
-    if v.abs() < 1e-4 {
-        return format!("{v:.2e}");
+    if v.abs() < 1e-3 || v.abs() >= 1e5 {
+        // Three significant digits in scientific notation, trailing zeros dropped: 2e-5.
+        let s = format!("{v:.2e}");
+        let (mantissa, exponent) = s.split_once('e').expect("{:e} output has an exponent");
+        let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+        return format!("{mantissa}e{exponent}");
     }
+    let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
     let s = format!("{v:.digits$}");
     if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -291,6 +301,15 @@ mod tests {
             let on = pareto_front(&pts).contains(&i);
             assert_eq!(on, !dominated && p.y.is_finite(), "point {i}");
         }
+    }
+
+    #[test]
+    fn tick_labels_keep_three_significant_digits() {
+        assert_eq!(tick_label(&2e-5), "2e-5");
+        assert_eq!(tick_label(&0.0015), "0.0015");
+        assert_eq!(tick_label(&0.5), "0.5");
+        assert_eq!(tick_label(&123.456), "123");
+        assert_eq!(tick_label(&1.5e6), "1.5e6");
     }
 
     #[test]
