@@ -149,6 +149,13 @@ enum BenchCommand {
         #[arg(long)]
         chart: Option<PathBuf>,
     },
+    /// Chart a table written by `bench accel --csv` without measuring again.
+    ChartAccel {
+        /// The CSV table.
+        table: PathBuf,
+        /// Chart path without extension: CHART.svg and CHART.png are written.
+        chart: PathBuf,
+    },
     /// Render a pipeline for every combination of swept keys; time each and measure its error
     /// against a high-quality render. Writes results.csv, summary.csv and chart.svg/.png.
     Sweep {
@@ -450,8 +457,13 @@ fn execute(command: Command) -> Result<(), Error> {
             let rows = thread_pool(threads)?
                 .install(|| accel::bench_accel(&opts, |row| println!("{}", row.csv())))?;
             if let Some(stem) = chart {
-                sweep::chart_accel(&rows, &stem, (film as usize).pow(2))?;
+                accel::chart(&rows, &stem)?;
             }
+            Ok(())
+        }
+        Command::Bench(BenchCommand::ChartAccel { table, chart }) => {
+            accel::chart(&accel::read_csv(&table)?, &chart)?;
+            eprintln!("wrote {0}.svg and {0}.png", chart.display());
             Ok(())
         }
         Command::Bench(BenchCommand::Sweep {

@@ -1,6 +1,7 @@
 //! `bench accel`: times kd-tree builds and ray throughput per split strategy on a ladder of meshes, with brute force (and, with the
 //! `baselines` cargo feature, the `bvh` crate) measured on the identical rays in the same run.
 
+use super::chart::{self, Chart, Front, Point, Series};
 use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod};
 use crate::error::{Error, Result};
 use crate::render::integrator::offset_origin;
@@ -94,6 +95,79 @@ impl AccelRow {
             opt(self.bytes.map(|v| v.to_string())),
         )
     }
+}
+
+/// Charts a `bench accel` table: build time against nanoseconds per primary ray, one series per
+/// scene, a Pareto front per scene (scenes of different sizes are not comparable points).
+pub fn chart(rows: &[AccelRow], stem: &Path) -> Result<()> {
+    let series = Series::group(rows.iter().map(|r| {
+        let point = Point {
+            label: r.method.clone(),
+            x: r.build_s,
+            y: 1e3 / r.primary_mrays_s,
+        };
+        (format!("{} ({} tris)", r.scene, r.triangles), point)
+    }));
+    chart::write(
+        &Chart {
+            title: "kd-tree split strategies: build time against trace time".into(),
+            x_label: "build time (s)".into(),
+            y_label: format!(
+                "ns per primary ray ({} threads)",
+                rows.first().map_or(0, |r| r.threads)
+            ),
+            series,
+            front: Front::PerSeries,
+        },
+        stem,
+    )
+}
+
+/// Reads a table written by `bench accel --csv` (or its standard output) back.
+pub fn read_csv(path: &Path) -> Result<Vec<AccelRow>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut lines = text.lines();
+    if lines.next() != Some(CSV_HEADER) {
+        return Err(Error::input(
+            path,
+            "not a bench accel table: the header differs",
+        ));
+    }
+    lines
+        .enumerate()
+        .map(|(i, line)| {
+            let bad = |what: &str| Error::input(path, format!("line {}: {what}", i + 2));
+            let f: Vec<&str> = line.split(',').collect();
+            if f.len() != CSV_HEADER.split(',').count() {
+                return Err(bad("wrong number of fields"));
+            }
+            let num = |k: usize| {
+                f[k].parse::<f64>()
+                    .map_err(|_| bad(&format!("'{}' is not a number", f[k])))
+            };
+            let opt = |k: usize| {
+                (!f[k].is_empty())
+                    .then(|| f[k].parse::<f64>().ok())
+                    .flatten()
+            };
+            Ok(AccelRow {
+                scene: f[0].to_string(),
+                method: f[1].to_string(),
+                triangles: num(2)? as usize,
+                threads: num(3)? as usize,
+                build_s: num(4)?,
+                build_ns_per_triangle: num(5)?,
+                primary_mrays_s: num(6)?,
+                shadow_mrays_s: num(7)?,
+                sah_cost: opt(8),
+                nodes: opt(9).map(|v| v as usize),
+                leaves: opt(10).map(|v| v as usize),
+                max_depth: opt(11).map(|v| v as usize),
+                refs_per_triangle: opt(12),
+                bytes: opt(13).map(|v| v as usize),
+            })
+        })
+        .collect()
 }
 
 /// A ray with its far limit, as replayed from a file or made from a camera.
@@ -470,6 +544,50 @@ mod baseline {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tables_read_back_what_was_written() {
+        let rows = [
+            AccelRow {
+                scene: "bunny".into(),
+                method: "sah".into(),
+                triangles: 948,
+                threads: 2,
+                build_s: 0.0115,
+                build_ns_per_triangle: 12102.0,
+                primary_mrays_s: 19.1684,
+                shadow_mrays_s: 6.4806,
+                sah_cost: Some(583.91),
+                nodes: Some(7055),
+                leaves: Some(3528),
+                max_depth: Some(21),
+                refs_per_triangle: Some(5.026),
+                bytes: Some(109628),
+            },
+            AccelRow {
+                scene: "bunny".into(),
+                method: "brute-force".into(),
+                triangles: 948,
+                threads: 2,
+                build_s: 0.0003,
+                primary_mrays_s: 0.5,
+                ..Default::default()
+            },
+        ];
+        let path = std::env::temp_dir().join(format!("accel-{}.csv", std::process::id()));
+        let text: Vec<String> = std::iter::once(CSV_HEADER.to_string())
+            .chain(rows.iter().map(AccelRow::csv))
+            .collect();
+        std::fs::write(&path, text.join("\n")).unwrap();
+        let back = read_csv(&path).unwrap();
+        assert_eq!(back.len(), 2);
+        for (a, b) in rows.iter().zip(&back) {
+            assert_eq!(a.csv(), b.csv());
+        }
+        std::fs::write(&path, "scene,method\nx,y\n").unwrap();
+        assert!(read_csv(&path).unwrap_err().to_string().contains("header"));
+        std::fs::remove_file(path).unwrap();
+    }
 
     #[test]
     fn ray_files_round_trip_and_reject_truncation() {

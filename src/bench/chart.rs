@@ -24,6 +24,23 @@ pub struct Series {
     pub points: Vec<Point>,
 }
 
+impl Series {
+    /// Points grouped into series by name, in order of first appearance.
+    pub fn group(named: impl IntoIterator<Item = (String, Point)>) -> Vec<Series> {
+        let mut series: Vec<Series> = Vec::new();
+        for (name, p) in named {
+            match series.iter_mut().find(|s| s.name == name) {
+                Some(s) => s.points.push(p),
+                None => series.push(Series {
+                    name,
+                    points: vec![p],
+                }),
+            }
+        }
+        series
+    }
+}
+
 /// Which points a Pareto front is taken over.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Front {

@@ -19,7 +19,7 @@ use crate::output::write_atomic;
 use crate::pipeline::LoadedPipeline;
 use crate::pipeline::trace::{FrameTracer, rig_views};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Keys set by path, with their values.
 type Overrides = Vec<(String, String)>;
@@ -482,20 +482,13 @@ fn write_files(
     })?;
 
     // One colour per value of the first swept key; the front runs over all combinations.
-    let mut series: Vec<Series> = Vec::new();
-    for (r, p) in results.iter().zip(points) {
+    let series = Series::group(results.iter().zip(points).map(|(r, p)| {
         let name = r
             .values
             .first()
             .map_or_else(|| "pipeline".to_string(), |(k, v)| format!("{k}={v}"));
-        match series.iter_mut().find(|s| s.name == name) {
-            Some(s) => s.points.push(p),
-            None => series.push(Series {
-                name,
-                points: vec![p],
-            }),
-        }
-    }
+        (name, p)
+    }));
     let name = opts
         .pipeline
         .file_stem()
@@ -511,37 +504,6 @@ fn write_files(
             front: Front::Global,
         },
         &opts.out_dir.join("chart"),
-    )
-}
-
-/// Charts a `bench accel` table: build time against the time to trace its rays, one series per
-/// scene, a Pareto front per scene. Returns the chart's stem.
-pub fn chart_accel(rows: &[super::accel::AccelRow], stem: &Path, rays: usize) -> Result<()> {
-    let mut series: Vec<Series> = Vec::new();
-    for r in rows {
-        let trace_s = rays as f64 * 1e-6 / r.primary_mrays_s.max(1e-12);
-        let p = Point {
-            label: r.method.clone(),
-            x: r.build_s,
-            y: trace_s,
-        };
-        match series.iter_mut().find(|s| s.name == r.scene) {
-            Some(s) => s.points.push(p),
-            None => series.push(Series {
-                name: r.scene.clone(),
-                points: vec![p],
-            }),
-        }
-    }
-    chart::write(
-        &Chart {
-            title: "kd-tree split strategies: build time against trace time".into(),
-            x_label: "build time (s)".into(),
-            y_label: format!("time to trace {rays} primary rays (s)"),
-            series,
-            front: Front::PerSeries,
-        },
-        stem,
     )
 }
 
