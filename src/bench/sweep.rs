@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 use crate::output::image::Image;
 use crate::output::write_atomic;
 use crate::pipeline::LoadedPipeline;
-use crate::pipeline::trace::{FrameTracer, rig_views};
+use crate::pipeline::trace::{FrameStats, FrameTracer, rig_views};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -197,19 +197,19 @@ fn reference_overrides(combo: &[(String, String)], spp: u32, depth: u32) -> Vec<
     r
 }
 
-/// The frames of a pipeline's range (or the override), traced once: per frame, the rig's views.
+/// Traces the frames of a range in order, handing each frame's views and statistics to
+/// `on_frame` as soon as it is traced (nothing of a frame is kept after it).
 fn trace_frames(
     p: &LoadedPipeline,
     frames: (u32, u32),
-) -> Vec<(Vec<(String, Image)>, crate::pipeline::trace::FrameStats)> {
+    mut on_frame: impl FnMut(usize, Vec<(String, Image)>, FrameStats),
+) {
     let views = rig_views(p);
     let mut tracer = FrameTracer::new(p);
-    (frames.0..=frames.1)
-        .map(|f| {
-            let (traced, stats) = tracer.trace(f, &views, &|_| {});
-            (traced.views, stats)
-        })
-        .collect()
+    for (k, f) in (frames.0..=frames.1).enumerate() {
+        let (traced, stats) = tracer.trace(f, &views, &|_| {});
+        on_frame(k, traced.views, stats);
+    }
 }
 
 /// Runs the sweep and writes its files; `progress` hears each combination as it finishes.
@@ -269,15 +269,15 @@ pub fn sweep(
             "reference {} ({ref_spp} spp, depth {ref_depth})",
             describe(&key)
         ));
-        let planes = trace_frames(&rp, frames)
-            .into_iter()
-            .map(|(views, _)| {
+        let mut planes = Vec::new();
+        trace_frames(&rp, frames, |_, views, _| {
+            planes.push(
                 views
                     .iter()
                     .map(|(n, img)| (n.clone(), Planes::from_image(img)))
-                    .collect()
-            })
-            .collect();
+                    .collect(),
+            )
+        });
         references.push((key, planes));
     }
 
@@ -300,7 +300,7 @@ pub fn sweep(
                 .1;
             let s = &mut samples[ci];
             memory::reset_peak();
-            for (k, (views, stats)) in trace_frames(p, frames).into_iter().enumerate() {
+            trace_frames(p, frames, |k, views, stats| {
                 s.update_s[k].push(stats.update_seconds());
                 s.trace_s[k].push(stats.trace_seconds());
                 s.frame_s[k]
@@ -320,11 +320,16 @@ pub fn sweep(
                         })
                         .collect();
                 }
-            }
+            });
             s.peak = memory::peak_bytes().map(|b| b.max(s.peak.unwrap_or(0)));
-            if r + 1 == opts.repeat.max(1) {
-                progress(&format!("{} measured", describe(c)));
-            }
+            let last: f64 = s.frame_s.iter().filter_map(|v| v.last()).sum();
+            progress(&format!(
+                "[repeat {}/{}] {}: {:.3} s/frame",
+                r + 1,
+                opts.repeat.max(1),
+                describe(c),
+                last / n as f64
+            ));
         }
     }
     let results: Vec<CombinationResult> = combos
