@@ -898,6 +898,30 @@ mod tests {
     use super::*;
 
     #[test]
+    fn keys_are_set_by_path_in_tables_and_arrays_of_tables() {
+        let src = "[scene]\npath = \"s.gltf\"\n[render]\nspp = 4\n[[output]]\nkind = \"anaglyph\"\npath = \"a.png\"\n";
+        let mut doc = src.parse::<toml_edit::DocumentMut>().unwrap();
+        set_key(&mut doc, "render.spp", "16").unwrap();
+        set_key(&mut doc, "accel.split", "center").unwrap(); // a table the file lacks
+        set_key(&mut doc, "output[0].method", "gray").unwrap();
+        set_key(&mut doc, "stereo.interaxial", "0.1").unwrap();
+        let p = Pipeline::parse(Path::new("p.toml"), &doc.to_string()).unwrap();
+        assert_eq!(p.render.spp, 16);
+        assert_eq!(p.accel.split, SplitMethod::Center);
+        assert_eq!(p.stereo.interaxial, 0.1);
+        assert!(doc.to_string().contains("method = \"gray\""));
+        for (key, why) in [
+            ("output[3].method", "has 1 entries"),
+            ("render[0].spp", "not an array"),
+            ("render.", "must end in a key name"),
+            ("output[x].path", "bad index"),
+        ] {
+            let err = set_key(&mut doc, key, "1").unwrap_err();
+            assert!(err.contains(why), "{key}: {err}");
+        }
+    }
+
+    #[test]
     fn minimal_pipeline_takes_the_documented_defaults() {
         let p = Pipeline::parse(Path::new("p.toml"), "[scene]\npath = \"s.gltf\"\n").unwrap();
         assert_eq!(
