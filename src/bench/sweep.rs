@@ -259,11 +259,15 @@ pub fn sweep(
 
     // One high-quality render per distinct reference, kept for every combination that uses it.
     let mut references: Vec<(Overrides, Vec<FrameViews>)> = Vec::new();
+    // Per combination, the index of its reference.
+    let mut reference_of = Vec::with_capacity(combos.len());
     for c in &combos {
         let key = reference_overrides(c, ref_spp, ref_depth);
-        if references.iter().any(|(k, _)| *k == key) {
+        if let Some(i) = references.iter().position(|(k, _)| *k == key) {
+            reference_of.push(i);
             continue;
         }
+        reference_of.push(references.len());
         let rp = base.with_overrides(&key)?;
         progress(&format!(
             "reference {} ({ref_spp} spp, depth {ref_depth})",
@@ -292,12 +296,7 @@ pub fn sweep(
     let mut samples: Vec<Samples> = (0..combos.len()).map(|_| Samples::new(n)).collect();
     for r in 0..opts.repeat.max(1) {
         for (ci, (c, p)) in combos.iter().zip(&pipelines).enumerate() {
-            let key = reference_overrides(c, ref_spp, ref_depth);
-            let reference = &references
-                .iter()
-                .find(|(k, _)| *k == key)
-                .expect("every combination's reference was rendered above")
-                .1;
+            let reference = &references[reference_of[ci]].1;
             let s = &mut samples[ci];
             memory::reset_peak();
             trace_frames(p, frames, |k, views, stats| {
