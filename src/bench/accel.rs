@@ -2,6 +2,7 @@
 //! `baselines` cargo feature, the `bvh` crate) measured on the identical rays in the same run.
 
 use super::chart::{self, Chart, Front, Point, Series};
+use super::median;
 use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod};
 use crate::error::{Error, Result};
 use crate::render::integrator::offset_origin;
@@ -347,15 +348,6 @@ fn time_rays(accel: &dyn Intersect, rays: &[TimedRay], any: bool) -> f64 {
     t.elapsed().as_secs_f64()
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v[v.len() / 2]
-    }
-}
-
 /// Runs the accel benchmark; one row per (scene, method).
 pub fn bench_accel(
     opts: &AccelBenchOptions,
@@ -429,10 +421,10 @@ pub fn bench_accel(
                 prim_t.push(time_rays(accel.as_ref(), &primary, false));
                 shadow_t.push(time_rays(accel.as_ref(), &shadow, true));
             }
-            row.build_s = median(builds);
+            row.build_s = median(&builds);
             row.build_ns_per_triangle = row.build_s * 1e9 / tris.len().max(1) as f64;
-            row.primary_mrays_s = mrays(&primary, median(prim_t));
-            row.shadow_mrays_s = mrays(&shadow, median(shadow_t));
+            row.primary_mrays_s = mrays(&primary, median(&prim_t));
+            row.shadow_mrays_s = mrays(&shadow, median(&shadow_t));
             progress(&row);
             rows.push(row);
         }

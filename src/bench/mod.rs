@@ -10,3 +10,14 @@ pub mod accel;
 pub mod chart;
 pub mod memory;
 pub mod sweep;
+
+/// The median of measurements (the mean of the middle two for an even count; NaN for none).
+pub(crate) fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}

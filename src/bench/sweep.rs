@@ -11,7 +11,7 @@
 //! combination: the chart's table) and `chart.svg` / `chart.png`.
 
 use super::chart::{self, Chart, Front, Point, Series};
-use super::memory;
+use super::{median, memory};
 use crate::compare::{Comparison, Planes, Thresholds, compare};
 use crate::error::{Error, Result};
 use crate::output::image::Image;
@@ -140,16 +140,6 @@ impl CombinationResult {
 fn mean(values: impl Iterator<Item = f64>) -> f64 {
     let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
     if n == 0 { f64::NAN } else { sum / n as f64 }
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
 }
 
 /// Every combination of the swept values, the first key varying slowest.
