@@ -19,51 +19,43 @@
 //! a view present on one side only is a failure. Two files of one view each are compared
 //! directly, whatever their view names.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::output::exr;
-use crate::output::image::Image;
+pub use crate::output::planes::Planes;
+use crate::output::planes::read_planes;
 use serde::Serialize;
-use std::path::Path;
+use std::fmt;
+use std::path::{Path, PathBuf};
 
-/// A multi-channel image: channel planes, row-major, top row first.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Planes {
-    pub width: usize,
-    pub height: usize,
-    pub names: Vec<String>,
-    pub data: Vec<Vec<f32>>,
-}
-
-impl Planes {
-    pub fn from_image(img: &Image) -> Planes {
-        Planes {
-            width: img.width,
-            height: img.height,
-            names: vec!["R".into(), "G".into(), "B".into()],
-            data: (0..3).map(|c| img.channel(c)).collect(),
-        }
-    }
-
-    fn value(&self, c: usize, x: usize, y: usize) -> f32 {
-        if c < self.data.len() && x < self.width && y < self.height {
-            self.data[c][y * self.width + x]
-        } else {
-            0.0
-        }
-    }
-}
-
-/// idiff's flags (defaults as idiff's).
-#[derive(Clone, Copy, Debug, Serialize)]
+/// idiff's flags, with idiff's names and defaults.
+#[derive(Clone, Copy, Debug, Serialize, clap::Args)]
 pub struct Thresholds {
+    /// Failure threshold on the absolute difference of a value.
+    #[arg(long, default_value_t = 1e-6)]
     pub fail: f32,
+    /// Warning threshold on the absolute difference of a value.
+    #[arg(long, default_value_t = 1e-6)]
     pub warn: f32,
+    /// Relative failure threshold (difference over the mean magnitude of the two values).
+    #[arg(long = "failrelative", default_value_t = 0.0)]
     pub fail_relative: f32,
+    /// Relative warning threshold.
+    #[arg(long = "warnrelative", default_value_t = 0.0)]
     pub warn_relative: f32,
+    /// Percentage of pixels allowed to fail.
+    #[arg(long = "failpercent", default_value_t = 0.0)]
     pub fail_percent: f32,
+    /// Percentage of pixels allowed to warn.
+    #[arg(long = "warnpercent", default_value_t = 0.0)]
     pub warn_percent: f32,
+    /// Fail if any value differs by more than this.
+    #[arg(long = "hardfail", default_value_t = f32::INFINITY)]
     pub hard_fail: f32,
+    /// Warn if any value differs by more than this.
+    #[arg(long = "hardwarn", default_value_t = f32::INFINITY)]
     pub hard_warn: f32,
+    /// Number of failing pixels that still pass.
+    #[arg(long = "allowfailures", default_value_t = 0)]
     pub allow_failures: u64,
 }
 
@@ -209,39 +201,6 @@ pub fn verdict(c: &Comparison, t: &Thresholds) -> Verdict {
     }
 }
 
-/// The views of an image file: EXR views by name (a file without views is one view named ""),
-/// any other format the image crate reads as one view "" with its R, G, B(, A) in [0, 1].
-pub fn read_views(path: &Path) -> Result<Vec<(String, Planes)>> {
-    let is_exr = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if is_exr {
-        return exr::read_view_planes(path);
-    }
-    let img =
-        image::open(path).map_err(|e| Error::input(path, format!("cannot read image: {e}")))?;
-    let has_alpha = img.color().has_alpha();
-    let rgba = img.to_rgba32f();
-    let (w, h) = (rgba.width() as usize, rgba.height() as usize);
-    let nc = if has_alpha { 4 } else { 3 };
-    let data = (0..nc)
-        .map(|c| rgba.pixels().map(|p| p[c]).collect())
-        .collect();
-    let names = ["R", "G", "B", "A"][..nc]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    Ok(vec![(
-        String::new(),
-        Planes {
-            width: w,
-            height: h,
-            names,
-            data,
-        },
-    )])
-}
-
 /// Result of comparing two files view by view.
 #[derive(Clone, Debug, Serialize)]
 pub struct FileComparison {
@@ -252,8 +211,8 @@ pub struct FileComparison {
 }
 
 pub fn compare_files(a: &Path, b: &Path, t: &Thresholds) -> Result<FileComparison> {
-    let va = read_views(a)?;
-    let vb = read_views(b)?;
+    let va = read_planes(a)?;
+    let vb = read_planes(b)?;
     if let ([(name, pa)], [(_, pb)]) = (va.as_slice(), vb.as_slice()) {
         // One view each: compare them whatever they are called (a plain RGB file against one
         // eye of a stereo pair), as idiff would.
@@ -316,6 +275,104 @@ pub fn difference_planes(a: &Planes, b: &Planes, scale: f32) -> Planes {
         height: h,
         names,
         data,
+    }
+}
+
+/// `--diff OUT`: the absolute difference (times `scale`) of every view both files hold, as a
+/// float EXR; with several views, one file per view, the view name added before the extension.
+/// Returns the files written.
+pub fn write_differences(a: &Path, b: &Path, out: &Path, scale: f32) -> Result<Vec<PathBuf>> {
+    let va = read_planes(a)?;
+    let vb = read_planes(b)?;
+    let several = va.len() > 1;
+    let mut written = Vec::new();
+    for (name, pa) in &va {
+        let Some((_, pb)) = vb.iter().find(|(n, _)| n == name) else {
+            continue;
+        };
+        let path = if several {
+            let stem = out
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            out.with_file_name(format!("{stem}_{name}.exr"))
+        } else {
+            out.to_path_buf()
+        };
+        exr::write_planes(&path, &difference_planes(pa, pb, scale))?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// The text report of a comparison, laid out as idiff prints its own.
+pub struct Report<'a> {
+    pub a: &'a Path,
+    pub b: &'a Path,
+    pub thresholds: &'a Thresholds,
+    pub result: &'a FileComparison,
+}
+
+impl fmt::Display for Report<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (r, t) = (self.result, self.thresholds);
+        writeln!(
+            f,
+            "Comparing \"{}\" and \"{}\"",
+            self.a.display(),
+            self.b.display()
+        )?;
+        for (view, c) in &r.views {
+            if !view.is_empty() {
+                writeln!(f, "view {view}:")?;
+            }
+            writeln!(
+                f,
+                "  Mean error = {:.6}  RMS error = {:.6}  Peak SNR = {:.3} dB",
+                c.mean_error, c.rms_error, c.psnr
+            )?;
+            writeln!(
+                f,
+                "  Max error  = {} @ ({}, {}, {})",
+                c.max_error,
+                c.max_at.0,
+                c.max_at.1,
+                c.channels.get(c.max_at.2).map_or("?", String::as_str)
+            )?;
+            for (i, name) in c.channels.iter().enumerate() {
+                writeln!(
+                    f,
+                    "  {name:>6}: mean {:.6}  rms {:.6}  max {:.6}",
+                    c.per_channel_mean[i], c.per_channel_rms[i], c.per_channel_max[i]
+                )?;
+            }
+            writeln!(
+                f,
+                "  {} pixels ({:.3}%) over {}",
+                c.warnings,
+                100.0 * c.warnings as f64 / c.pixels as f64,
+                t.warn
+            )?;
+            writeln!(
+                f,
+                "  {} pixels ({:.3}%) over {}",
+                c.failures,
+                c.percent_failed(),
+                t.fail
+            )?;
+        }
+        for m in &r.missing_views {
+            writeln!(f, "view '{m}' is in only one of the files")?;
+        }
+        write!(
+            f,
+            "{}",
+            match r.verdict {
+                Verdict::Pass => "PASS",
+                Verdict::Warn => "WARNING",
+                Verdict::Fail => "FAILURE",
+            }
+        )
     }
 }
 

@@ -31,6 +31,12 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    /// `compare` could not read an input or write its difference image: idiff's status 4.
+    #[error(transparent)]
+    Compare(Box<Error>),
+    /// A broken invariant of the program, never the user's input.
+    #[error("internal error (a bug in stereotrace, please report it): {0}")]
+    Internal(String),
 }
 
 impl Error {
@@ -56,10 +62,14 @@ impl Error {
         }
     }
 
-    /// Exit status for the command line: 2 for anything the user's input caused, 1 otherwise.
-    pub fn exit_code(&self) -> i32 {
+    /// Exit status for the command line: 2 for anything the user's input caused, 1 when
+    /// reading or writing failed otherwise, 4 for `compare`'s unreadable inputs (idiff's), and
+    /// 70 for a program bug (`EX_SOFTWARE` of BSD's sysexits.h).
+    pub fn exit_code(&self) -> u8 {
         match self {
             Error::Io { source, .. } if source.kind() != std::io::ErrorKind::NotFound => 1,
+            Error::Compare(_) => 4,
+            Error::Internal(_) => 70,
             _ => 2,
         }
     }

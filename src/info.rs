@@ -1,6 +1,6 @@
 //! `stereotrace info`: what a scene holds, and with `--accel` the kd-tree built over its rest pose.
 
-use crate::accel::stats::TreeStats;
+use crate::accel::TreeStats;
 use crate::accel::{BuildParams, KdTree, SplitMethod};
 use crate::scene::Scene;
 use crate::scene::animation::AnimationSummary;

@@ -14,3 +14,16 @@ pub mod render;
 pub mod scene;
 
 pub use error::{Error, Result};
+
+/// The worker pool a command runs on (0 threads: one per core).
+pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| {
+            Error::input(
+                std::path::Path::new("--threads"),
+                format!("cannot start {threads} threads: {e}"),
+            )
+        })
+}

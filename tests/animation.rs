@@ -7,8 +7,7 @@ mod common;
 use common::{scratch, shared};
 use glam::{Mat4, Quat, Vec3};
 use stereotrace::accel::BuildParams;
-use stereotrace::pipeline::UpdateMode;
-use stereotrace::pipeline::update::Updater;
+use stereotrace::accel::{UpdateMode, Updater};
 use stereotrace::scene::animation::{self, Property};
 use stereotrace::scene::{Scene, Transform, pose};
 
@@ -167,8 +166,7 @@ fn a_frame_rendered_alone_equals_the_same_frame_inside_a_range() {
 #[test]
 fn every_frame_of_animated_models_hits_what_brute_force_hits() {
     use stereotrace::accel::{BruteForce, BuildParams, Intersect, Ray};
-    use stereotrace::pipeline::UpdateMode;
-    use stereotrace::pipeline::update::Updater;
+    use stereotrace::accel::{UpdateMode, Updater};
     for model in [
         "BoxAnimated/BoxAnimated.glb",
         "RiggedFigure/RiggedFigure.glb",
@@ -237,7 +235,7 @@ fn cost_track(model: &str, mode: UpdateMode, frames: u32) -> Vec<(&'static str, 
         let (_, rows) = updater.update(&posed);
         for r in rows.iter().filter(|r| r.object != "static") {
             if let Some(c) = r.sah_cost {
-                track.push((r.action, c));
+                track.push((r.action.as_str(), c));
             }
         }
     }

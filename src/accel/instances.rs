@@ -8,9 +8,11 @@
 //! Rays enter an instance through the inverse transform without renormalizing the direction, so
 //! hit distances are the same in both spaces and hits from all parts compare directly.
 
-use super::build::{Aabb, KdTree};
+use super::aabb::Aabb;
+use super::refit::RefitTree;
+use super::tree::KdTree;
 use super::{Hit, Intersect, Ray};
-use glam::{Mat4, Vec3};
+use glam::Mat4;
 use std::sync::Arc;
 
 /// How a part's triangle indices map to the frame's global triangle indices.
@@ -55,7 +57,7 @@ impl Part {
     }
 
     /// A world-space tree refitted to deformed triangles.
-    pub fn refitted(tree: Arc<super::refit::RefitTree>, map: PrimMap) -> Part {
+    pub fn refitted(tree: Arc<RefitTree>, map: PrimMap) -> Part {
         let bounds = tree.bounds();
         Part {
             accel: tree,
@@ -67,22 +69,7 @@ impl Part {
 
     /// An instance of an object-space tree placed by `object_to_world`.
     pub fn instance(tree: Arc<KdTree>, map: PrimMap, object_to_world: Mat4) -> Part {
-        let b = tree.bounds;
-        let bounds = if b.is_empty() {
-            b
-        } else {
-            let corners: Vec<Vec3> = (0..8)
-                .map(|i| {
-                    let c = Vec3::new(
-                        if i & 1 == 0 { b.min.x } else { b.max.x },
-                        if i & 2 == 0 { b.min.y } else { b.max.y },
-                        if i & 4 == 0 { b.min.z } else { b.max.z },
-                    );
-                    object_to_world.transform_point3(c)
-                })
-                .collect();
-            Aabb::of_points(&corners)
-        };
+        let bounds = tree.bounds.transformed(&object_to_world);
         Part {
             accel: tree,
             map,
@@ -138,7 +125,7 @@ mod tests {
     use super::super::{BruteForce, BuildParams};
     use super::*;
     use crate::accel::test_rng::Lcg;
-    use glam::Quat;
+    use glam::{Quat, Vec3};
 
     #[test]
     fn instances_and_world_parts_give_the_brute_force_hits() {

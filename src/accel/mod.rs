@@ -1,14 +1,26 @@
 //! `accel/` answers two questions about a set of world-space triangles: the closest hit along a ray
 //! and whether anything blocks a segment. Behind that small interface sits a kd-tree; `render/`
-//! never sees its layout. This module never sees a material, a light or a camera.
+//! never sees its layout. This module never sees a material, a light or a camera; its per-frame
+//! update (`update.rs`) reads only the posed triangles and node matrices of a frame.
+//!
+//! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
+//! shares), `build` and `sah` (the builders), `tree` (the compact layout), `traverse` and
+//! `refit` (the two walks), `instances` (the two-level top), `update` (the per-frame policy),
+//! `stats`, `triangle` (the watertight ray-triangle test). Only what this file re-exports is
+//! visible outside.
 
-pub mod build;
-pub mod instances;
-pub mod refit;
+mod aabb;
+mod build;
+mod instances;
+mod params;
+mod refit;
 mod sah;
-pub mod stats;
-pub mod traverse;
+mod split;
+mod stats;
+mod traverse;
+mod tree;
 pub mod triangle;
+mod update;
 
 use glam::Vec3;
 
@@ -34,7 +46,12 @@ pub(crate) mod test_rng {
     }
 }
 
-pub use build::{BuildParams, KdTree, SplitMethod};
+pub use aabb::Aabb;
+pub use instances::TwoLevel;
+pub use params::{BuildParams, SplitMethod};
+pub use stats::TreeStats;
+pub use tree::KdTree;
+pub use update::{Action, LogRow, Reason, UpdateMode, Updater};
 
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {

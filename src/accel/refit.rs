@@ -6,8 +6,9 @@
 //! children's slabs may then overlap, and traversal clips the ray to each child's slab. The
 //! compact 8-byte nodes of the static path are untouched: the planes live beside them.
 
-use super::build::{Aabb, KdTree, MAX_DEPTH};
-use super::triangle::{RayPre, intersect};
+use super::aabb::Aabb;
+use super::traverse::{LeafWalk, any_hit, closest_hit};
+use super::tree::{KdTree, MAX_DEPTH};
 use super::{Hit, Intersect, Ray};
 use glam::Vec3;
 use std::sync::Arc;
@@ -19,13 +20,6 @@ pub struct RefitTree {
     /// Per node: (max of the below subtree, min of the above subtree) on the node's axis.
     planes: Vec<[f32; 2]>,
     bounds: Aabb,
-}
-
-fn union(a: Aabb, b: Aabb) -> Aabb {
-    Aabb {
-        min: a.min.min(b.min),
-        max: a.max.max(b.max),
-    }
 }
 
 impl RefitTree {
@@ -83,7 +77,7 @@ impl RefitTree {
 
     /// Front-to-back walk over overlapping child slabs; `on_leaf` returns the new best distance
     /// and whether to stop.
-    fn walk(&self, ray: &Ray, t_max: f32, mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
+    fn walk_slabs(&self, ray: &Ray, t_max: f32, mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
         let nodes = &self.topology.nodes;
         if nodes.is_empty() || self.bounds.is_empty() {
             return;
@@ -150,43 +144,32 @@ fn subtree_bounds(t: &KdTree, tris: &[[Vec3; 3]], planes: &mut [[f32; 2]], i: us
     if n.is_leaf() {
         return t.prim_refs[n.leaf_range()]
             .iter()
-            .fold(Aabb::EMPTY, |b, &p| {
-                union(b, Aabb::of_points(&tris[p as usize]))
-            });
+            .fold(Aabb::EMPTY, |b, &p| b.union(&Aabb::of_points(&tris[p as usize])));
     }
     let below = subtree_bounds(t, tris, planes, i + 1);
     let above = subtree_bounds(t, tris, planes, i + n.above_offset());
     let axis = n.axis();
     planes[i] = [below.max[axis], above.min[axis]];
-    union(below, above)
+    below.union(&above)
+}
+
+impl LeafWalk for RefitTree {
+    fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+
+    fn walk(&self, ray: &Ray, t_max: f32, on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
+        self.walk_slabs(ray, t_max, on_leaf)
+    }
 }
 
 impl Intersect for RefitTree {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        let pre = RayPre::new(ray);
-        let mut hit = None;
-        self.walk(ray, t_max, |prims, mut best| {
-            for &p in prims {
-                if let Some((t, b1, b2)) = intersect(&pre, &self.triangles[p as usize], best) {
-                    best = t;
-                    hit = Some(Hit { t, prim: p, b1, b2 });
-                }
-            }
-            (best, false)
-        });
-        hit
+        closest_hit(self, ray, t_max)
     }
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
-        let pre = RayPre::new(ray);
-        let mut found = false;
-        self.walk(ray, t_max, |prims, best| {
-            found = prims
-                .iter()
-                .any(|&p| intersect(&pre, &self.triangles[p as usize], best).is_some());
-            (best, found)
-        });
-        found
+        any_hit(self, ray, t_max)
     }
 }
 

@@ -8,9 +8,10 @@
 //! three axes are swept in parallel, so two cores are busy from the root down. The result does not
 //! depend on the thread count: every choice is made by the same sequential rules.
 
-use super::build::{
-    Aabb, BuildNode, BuildParams, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler,
-    consider_plane, side_of,
+use super::aabb::Aabb;
+use super::params::BuildParams;
+use super::split::{
+    BuildNode, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler, consider_plane, side_of,
 };
 use glam::Vec3;
 use rayon::prelude::*;

@@ -1,6 +1,7 @@
 //! Statistics of a built kd-tree: size, depth, references and the SAH cost of the whole tree.
 
-use super::build::{Aabb, KdTree};
+use super::aabb::Aabb;
+use super::tree::KdTree;
 use serde::Serialize;
 
 #[derive(Clone, Debug, Serialize)]

@@ -3,15 +3,18 @@
 //! returns at the first hit. Rays parallel to a split plane, starting on one, or with zero
 //! direction components are handled explicitly rather than through inf/NaN arithmetic.
 
-use super::build::{KdTree, MAX_DEPTH};
+use super::tree::{KdTree, MAX_DEPTH};
 use super::triangle::{RayPre, intersect};
 use super::{Hit, Intersect, Ray};
+use glam::Vec3;
 
 const STACK: usize = MAX_DEPTH as usize + 4;
 
-impl KdTree {
-    /// Shared walk: `on_leaf` tests a leaf's triangles against the current best distance and
-    /// returns the new best; it returns `true` in `stop` to end the walk (any-hit).
+impl LeafWalk for KdTree {
+    fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+
     #[inline]
     fn walk(&self, ray: &Ray, t_max: f32, mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
         if self.nodes.is_empty() || self.bounds.is_empty() {
@@ -79,31 +82,52 @@ impl KdTree {
 
 impl Intersect for KdTree {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        let pre = RayPre::new(ray);
-        let mut hit = None;
-        self.walk(ray, t_max, |prims, mut best| {
-            for &p in prims {
-                if let Some((t, b1, b2)) = intersect(&pre, &self.triangles[p as usize], best) {
-                    best = t;
-                    hit = Some(Hit { t, prim: p, b1, b2 });
-                }
-            }
-            (best, false)
-        });
-        hit
+        closest_hit(self, ray, t_max)
     }
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
-        let pre = RayPre::new(ray);
-        let mut found = false;
-        self.walk(ray, t_max, |prims, best| {
-            found = prims
-                .iter()
-                .any(|&p| intersect(&pre, &self.triangles[p as usize], best).is_some());
-            (best, found)
-        });
-        found
+        any_hit(self, ray, t_max)
     }
+}
+
+/// A tree whose leaves list indices into its own triangles, walked front to back: the static
+/// kd-tree and the refitted one differ only in how they walk, not in what a leaf does.
+pub(super) trait LeafWalk {
+    fn triangles(&self) -> &[[Vec3; 3]];
+    /// Visits leaves front to back; `on_leaf` tests a leaf against the current best distance
+    /// and returns the new best and whether to stop.
+    fn walk(&self, ray: &Ray, t_max: f32, on_leaf: impl FnMut(&[u32], f32) -> (f32, bool));
+}
+
+/// Closest hit over a walk: every leaf's triangles against the best distance so far.
+pub(super) fn closest_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32) -> Option<Hit> {
+    let pre = RayPre::new(ray);
+    let triangles = tree.triangles();
+    let mut hit = None;
+    tree.walk(ray, t_max, |prims, mut best| {
+        for &p in prims {
+            if let Some((t, b1, b2)) = intersect(&pre, &triangles[p as usize], best) {
+                best = t;
+                hit = Some(Hit { t, prim: p, b1, b2 });
+            }
+        }
+        (best, false)
+    });
+    hit
+}
+
+/// Any hit over a walk: stops at the first leaf with a hit.
+pub(super) fn any_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32) -> bool {
+    let pre = RayPre::new(ray);
+    let triangles = tree.triangles();
+    let mut found = false;
+    tree.walk(ray, t_max, |prims, best| {
+        found = prims
+            .iter()
+            .any(|&p| intersect(&pre, &triangles[p as usize], best).is_some());
+        (best, found)
+    });
+    found
 }
 
 #[cfg(test)]
@@ -111,7 +135,6 @@ mod tests {
     use super::super::test_rng::Lcg;
     use super::super::{BruteForce, BuildParams, SplitMethod};
     use super::*;
-    use glam::Vec3;
 
     fn soup(rng: &mut Lcg, n: usize) -> Vec<[Vec3; 3]> {
         (0..n)

@@ -37,22 +37,47 @@ impl AccelMethod {
     }
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, clap::Args)]
 pub struct AccelBenchOptions {
-    /// glTF files, or `generated:N` for a generated mesh of about N triangles.
+    /// glTF files, or generated:N for a generated mesh of about N triangles.
+    #[arg(required = true)]
     pub scenes: Vec<String>,
+    /// Split strategies to measure.
+    #[arg(
+        long = "split",
+        value_enum,
+        value_delimiter = ',',
+        default_value = "center,median,sah"
+    )]
     pub splits: Vec<SplitMethod>,
+    /// Runs per measurement; the median is reported.
+    #[arg(long, default_value_t = 3)]
     pub repeat: usize,
+    /// Write the table as CSV.
+    #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// Replay primary rays from a file (u64 count, then 7 little-endian f32 per ray: origin,
+    /// direction, t_max) instead of the camera's.
+    #[arg(long)]
     pub rays: Option<PathBuf>,
+    /// Replay shadow rays (any-hit) from a file in the same format.
+    #[arg(long)]
     pub shadow_rays: Option<PathBuf>,
-    /// Camera rays per side of the square film when rays are not replayed.
+    /// Camera rays per side of the square film.
+    #[arg(long, default_value_t = 512)]
     pub film: u32,
     /// Brute force runs only while triangles x rays stays below this.
+    #[arg(skip = 2e9)]
     pub brute_force_budget: f64,
-    /// Folder to write each scene's rays to (`<scene>_primary.rays`, `<scene>_shadow.rays`), so
-    /// other ray tracers can be timed on identical rays.
+    /// Write each scene's primary and shadow rays into this folder in the replay format
+    /// (`<scene>_primary.rays`, `<scene>_shadow.rays`), so other ray tracers can be timed on
+    /// identical rays.
+    #[arg(long)]
     pub save_rays: Option<PathBuf>,
+    /// Also draw the table as a chart: CHART.svg and CHART.png (build time against trace time,
+    /// Pareto front per scene).
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
 }
 
 #[derive(Clone, Debug, Default)]

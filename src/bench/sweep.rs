@@ -17,7 +17,8 @@ use crate::error::{Error, Result};
 use crate::output::image::Image;
 use crate::output::write_atomic;
 use crate::pipeline::LoadedPipeline;
-use crate::pipeline::trace::{FrameStats, FrameTracer, rig_views};
+use crate::pipeline::{FrameStats, FrameTracer, parse_frame_range};
+use std::fmt;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -32,21 +33,32 @@ const DEPTH: &str = "render.max_depth";
 const SPLIT: &str = "accel.split";
 const UPDATE: &str = "accel.update";
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, clap::Args)]
 pub struct SweepOptions {
+    /// Pipeline file (TOML).
     pub pipeline: PathBuf,
-    /// Swept keys with their values, in the order given: the first varies slowest.
+    /// KEY=V1,V2,...: a pipeline key by path and the values to try (repeatable), e.g.
+    /// accel.split=center,sah  render.spp=1,4,16  render.shading=phong,cook-torrance. The
+    /// first varies slowest.
+    #[arg(long = "sweep", value_parser = parse_sweep)]
     pub sweeps: Vec<(String, Vec<String>)>,
+    /// Runs per combination; times are medians with the fastest and slowest run.
+    #[arg(long, default_value_t = 3)]
     pub repeat: usize,
+    /// Folder for the results.
+    #[arg(long = "out", default_value = "out/sweep")]
     pub out_dir: PathBuf,
-    /// Inclusive frame range overriding the pipeline's.
+    /// Frame range A..B (inclusive), overriding the pipeline's [frames].
+    #[arg(long, value_parser = parse_frame_range)]
     pub frames: Option<(u32, u32)>,
-    /// Samples per pixel of the high-quality render (default: 4x the most any combination
-    /// uses, at least 64).
+    /// Samples per pixel of the high-quality render [default: 4x the most swept, at least 64].
+    #[arg(long)]
     pub reference_spp: Option<u32>,
-    /// Recursion depth of the high-quality render (default: the deepest any combination uses).
+    /// Recursion depth of the high-quality render [default: the deepest swept].
+    #[arg(long)]
     pub reference_depth: Option<u32>,
     /// Per-channel error above which a pixel counts as wrong (`compare --fail`).
+    #[arg(long, default_value_t = 0.02)]
     pub threshold: f32,
 }
 
@@ -160,6 +172,33 @@ pub fn combinations(sweeps: &[(String, Vec<String>)]) -> Vec<Vec<(String, String
     out
 }
 
+/// The table `bench sweep` prints: one line per combination.
+pub struct Table<'a>(pub &'a [CombinationResult]);
+
+impl fmt::Display for Table<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8}",
+            "combination", "s/frame", "Mrays/s", "peak MB", "mean |err|", "PSNR"
+        )?;
+        for r in self.0 {
+            write!(
+                f,
+                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2}",
+                r.label(),
+                r.frame_seconds(),
+                r.mrays_per_second(),
+                r.peak_bytes
+                    .map_or("-".into(), |b| format!("{:.1}", b as f64 / 1048576.0)),
+                r.mean_abs_error(),
+                r.psnr()
+            )?;
+        }
+        Ok(())
+    }
+}
+
 /// Parses `KEY=V1,V2,...`.
 pub fn parse_sweep(arg: &str) -> Result<(String, Vec<String>), String> {
     let (key, values) = arg
@@ -194,11 +233,16 @@ fn trace_frames(
     frames: (u32, u32),
     mut on_frame: impl FnMut(usize, Vec<(String, Image)>, FrameStats),
 ) {
-    let views = rig_views(p);
+    let views = p.rig_views();
     let mut tracer = FrameTracer::new(p);
     for (k, f) in (frames.0..=frames.1).enumerate() {
         let (traced, stats) = tracer.trace(f, &views, &|_| {});
-        on_frame(k, traced.views, stats);
+        let named = traced
+            .views
+            .into_iter()
+            .map(|(v, img)| (v.name(), img))
+            .collect();
+        on_frame(k, named, stats);
     }
 }
 

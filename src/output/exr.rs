@@ -5,7 +5,7 @@
 
 use super::image::Image;
 use super::write_atomic;
-use crate::compare::Planes;
+use super::planes::Planes;
 use crate::error::{Error, Result};
 use exr::prelude::*;
 use smallvec::SmallVec;

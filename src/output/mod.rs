@@ -8,6 +8,7 @@ pub mod color;
 pub mod exr;
 pub mod image;
 pub mod layout;
+pub mod planes;
 pub mod png;
 pub mod pseudo;
 pub mod video;

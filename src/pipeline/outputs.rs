@@ -3,57 +3,42 @@
 //! wobble GIF's frames, a video stream) and finish at the end of the range. The image work itself
 //! lives in `output/`; this module only routes frames and paths.
 
+use super::output_spec::{ExrViews, OutputSpec};
 use super::template::PathTemplate;
-use super::{ExrViews, OutputSpec};
 use crate::error::{Error, Result};
 use crate::output::image::Image;
 use crate::output::pseudo::PseudoStereo;
 use crate::output::video::VideoEncoder;
 use crate::output::{anaglyph, exr, layout, png, wobble};
-use crate::render::Eye;
+use crate::render::View;
 use std::path::{Path, PathBuf};
 
-/// The views of one frame, linear radiance, by name (`left`, `right`, `center`, `wobble-i-of-n`).
+/// The views of one frame, linear radiance.
 pub struct StereoFrame {
     pub frame: u32,
-    pub views: Vec<(String, Image)>,
+    pub views: Vec<(View, Image)>,
 }
 
 impl StereoFrame {
-    pub fn view(&self, name: &str) -> Result<&Image> {
+    pub fn view(&self, view: View) -> Result<&Image> {
         self.views
             .iter()
-            .find(|(n, _)| n == name)
+            .find(|(v, _)| *v == view)
             .map(|(_, img)| img)
             .ok_or_else(|| {
-                Error::input(
-                    Path::new(name),
-                    "internal: a view an output needs was not rendered",
-                )
+                Error::Internal(format!(
+                    "view '{}' is needed by an output but was not traced",
+                    view.name()
+                ))
             })
-    }
-}
-
-/// Name and eye position (fraction of the interaxial distance, -1/2 left to +1/2 right) of view
-/// `i` of `n` evenly spaced along the baseline; the ends are the two eyes themselves.
-pub fn wobble_view(i: usize, n: usize) -> (String, f32) {
-    if i == 0 {
-        ("left".into(), -0.5)
-    } else if i + 1 == n {
-        ("right".into(), 0.5)
-    } else {
-        (
-            format!("wobble-{i}-of-{n}"),
-            -0.5 + i as f32 / (n - 1) as f32,
-        )
     }
 }
 
 pub struct Writer {
     spec: OutputSpec,
     template: PathTemplate,
-    /// Eyes of the rig, for EXR and PNG.
-    rig_eyes: Vec<Eye>,
+    /// The rig's own views, for EXR and PNG.
+    rig: Vec<View>,
     video: Option<VideoEncoder>,
     pseudo: Option<PseudoStereo>,
     gif_frames: Vec<Vec<u8>>,
@@ -67,7 +52,7 @@ impl Writer {
     pub fn new(
         spec: &OutputSpec,
         template: &PathTemplate,
-        rig_eyes: &[Eye],
+        rig: &[View],
         out_dir: &Path,
         fps: f32,
     ) -> Writer {
@@ -82,7 +67,7 @@ impl Writer {
         Writer {
             spec: spec.clone(),
             template: template.clone(),
-            rig_eyes: rig_eyes.to_vec(),
+            rig: rig.to_vec(),
             video: spec
                 .video()
                 .map(|v| VideoEncoder::new(out_dir.join(v), fps)),
@@ -94,34 +79,6 @@ impl Writer {
         }
     }
 
-    /// Views this output needs for frame `k` of the range (names, eye offset fractions).
-    pub fn views_for(spec: &OutputSpec, rig_eyes: &[Eye], k: usize) -> Vec<(String, f32)> {
-        let eye = |e: Eye| (e.name().to_string(), e.offset_fraction());
-        match spec {
-            OutputSpec::Exr { .. } | OutputSpec::Png { .. } => {
-                rig_eyes.iter().map(|&e| eye(e)).collect()
-            }
-            OutputSpec::Anaglyph { .. }
-            | OutputSpec::SideBySide { .. }
-            | OutputSpec::TopBottom { .. }
-            | OutputSpec::Interlaced { .. } => vec![eye(Eye::Left), eye(Eye::Right)],
-            OutputSpec::PseudoStereo { eye: e, .. } => vec![eye(*e)],
-            OutputSpec::WobbleGif {
-                views,
-                mode,
-                per_frame,
-                ..
-            } => {
-                let order = wobble::schedule(*views, *mode);
-                if *per_frame {
-                    (0..*views).map(|i| wobble_view(i, *views)).collect()
-                } else {
-                    vec![wobble_view(order[k % order.len()], *views)]
-                }
-            }
-        }
-    }
-
     /// Writes (or stores) what this output makes of one frame; returns the files written.
     pub fn frame(&mut self, f: &StereoFrame) -> Result<Vec<PathBuf>> {
         let display = self.spec.display();
@@ -130,18 +87,20 @@ impl Writer {
         // Sequence outputs make one 8-bit image per frame: a PNG, and a video frame if asked.
         let sequence: Option<(usize, usize, Vec<u8>)> = match &self.spec {
             OutputSpec::Exr { half, views, .. } => {
-                let eyes: Vec<(&str, &Image)> = self
-                    .rig_eyes
+                let eyes: Vec<(String, &Image)> = self
+                    .rig
                     .iter()
-                    .map(|e| Ok((e.name(), f.view(e.name())?)))
+                    .map(|&v| Ok((v.name(), f.view(v)?)))
                     .collect::<Result<_>>()?;
                 match views {
                     ExrViews::Single => {
-                        exr::write_multiview(&path(""), &eyes, *half)?;
+                        let named: Vec<(&str, &Image)> =
+                            eyes.iter().map(|(n, img)| (n.as_str(), *img)).collect();
+                        exr::write_multiview(&path(""), &named, *half)?;
                         files.push(path(""));
                     }
                     ExrViews::Separate => {
-                        for (name, img) in eyes {
+                        for (name, img) in &eyes {
                             exr::write_single_view(&path(name), name, img, *half)?;
                             files.push(path(name));
                         }
@@ -150,9 +109,9 @@ impl Writer {
                 None
             }
             OutputSpec::Png { .. } => {
-                for e in &self.rig_eyes {
-                    png::write_png(&path(e.name()), f.view(e.name())?, &display)?;
-                    files.push(path(e.name()));
+                for &v in &self.rig {
+                    png::write_png(&path(&v.name()), f.view(v)?, &display)?;
+                    files.push(path(&v.name()));
                 }
                 None
             }
@@ -162,7 +121,7 @@ impl Writer {
                 space,
                 ..
             } => {
-                let (l, r) = (f.view("left")?, f.view("right")?);
+                let (l, r) = (f.view(View::LEFT)?, f.view(View::RIGHT)?);
                 Some((
                     l.width,
                     l.height,
@@ -174,7 +133,7 @@ impl Writer {
                 half,
                 ..
             } => Some(encode(
-                &layout::side_by_side(f.view("left")?, f.view("right")?, *order, *half),
+                &layout::side_by_side(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order, *half),
                 &display,
             )),
             OutputSpec::TopBottom {
@@ -182,15 +141,15 @@ impl Writer {
                 half,
                 ..
             } => Some(encode(
-                &layout::top_bottom(f.view("left")?, f.view("right")?, *order, *half),
+                &layout::top_bottom(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order, *half),
                 &display,
             )),
             OutputSpec::Interlaced { layout: order, .. } => Some(encode(
-                &layout::interlaced(f.view("left")?, f.view("right")?, *order),
+                &layout::interlaced(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order),
                 &display,
             )),
             OutputSpec::PseudoStereo { eye, .. } => {
-                let img = f.view(eye.name())?.clone();
+                let img = f.view(View::Eye(*eye))?.clone();
                 let out = self
                     .pseudo
                     .as_mut()
@@ -207,10 +166,7 @@ impl Writer {
                 dither,
                 ..
             } => {
-                let names: Vec<String> = Self::views_for(&self.spec, &self.rig_eyes, self.k)
-                    .into_iter()
-                    .map(|(n, _)| n)
-                    .collect();
+                let needed = self.spec.views(&self.rig, self.k);
                 let order = if *per_frame {
                     wobble::schedule(*views, *mode)
                 } else {
@@ -218,7 +174,7 @@ impl Writer {
                 };
                 let mut frames = Vec::new();
                 for &i in &order {
-                    let (w, h, rgb) = encode(f.view(&names[i])?, &display);
+                    let (w, h, rgb) = encode(f.view(needed[i])?, &display);
                     self.gif_size = (w, h);
                     frames.push(rgb);
                 }

@@ -8,8 +8,9 @@ use super::trace::FrameTracer;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
 use crate::render::frame::tile_count;
-use crate::render::{Eye, RayCounts};
+use crate::render::{RayCounts, View};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::fmt;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -36,6 +37,27 @@ pub struct RunSummary {
     /// Time spent turning traced frames into files (all outputs).
     pub output_seconds: f64,
     pub files: Vec<PathBuf>,
+}
+
+impl fmt::Display for RunSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = &self.rays;
+        write!(
+            f,
+            "rendered {} frame(s), {} eye image(s), {} files; {:.1} M rays ({:.1} M primary, {:.1} M secondary, {:.1} M shadow) in {:.2} s: tracing {:.2} s ({:.2} M rays/s), outputs {:.2} s",
+            self.frames,
+            self.eyes_traced,
+            self.files.len(),
+            r.total() as f64 * 1e-6,
+            r.primary as f64 * 1e-6,
+            r.secondary as f64 * 1e-6,
+            r.shadow as f64 * 1e-6,
+            self.seconds,
+            self.trace_seconds,
+            r.total() as f64 * 1e-6 / self.trace_seconds.max(1e-9),
+            self.output_seconds,
+        )
+    }
 }
 
 fn bar(multi: &MultiProgress, len: u64, template: &str) -> ProgressBar {
@@ -72,17 +94,13 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
         ));
     }
     let threads = opts.threads.unwrap_or(spec.render.threads);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| Error::input(&p.file, format!("cannot start {threads} threads: {e}")))?;
-    pool.install(|| run_frames(p, opts, start, end))
+    crate::thread_pool(threads)?.install(|| run_frames(p, opts, start, end))
 }
 
 fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Result<RunSummary> {
     let spec = &p.spec;
     let t0 = Instant::now();
-    let eyes = p.eyes();
+    let rig = p.rig_views();
     let (w, h) = (spec.render.width as usize, spec.render.height as usize);
 
     let multi = MultiProgress::with_draw_target(if opts.progress {
@@ -106,22 +124,22 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         .outputs
         .iter()
         .zip(&p.templates)
-        .map(|(o, t)| Writer::new(o, t, &eyes, &opts.out_dir, spec.frames.fps))
+        .map(|(o, t)| Writer::new(o, t, &rig, &opts.out_dir, spec.frames.fps))
         .collect();
     let mut summary = RunSummary::default();
     let mut log = vec![FRAME_LOG_HEADER.to_string()];
     let mut tracer = FrameTracer::new(p);
     for (k, frame) in (start..=end).enumerate() {
         tile_bar.reset();
-        let views = views_needed(p, &eyes, k);
+        let views = views_needed(p, &rig, k);
         tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
         tile_bar.set_message(format!("frame {frame}"));
         let (stereo, stats) = tracer.trace(frame, &views, &|_| tile_bar.inc(1));
         let mut view_seconds = [0f64; 3];
-        for (name, secs) in &stats.view_seconds {
-            view_seconds[match name.as_str() {
-                "left" => 0,
-                "right" => 1,
+        for (view, secs) in &stats.view_seconds {
+            view_seconds[match *view {
+                View::LEFT => 0,
+                View::RIGHT => 1,
                 _ => 2,
             }] += secs;
         }
@@ -133,7 +151,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
                 "{frame},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{}",
                 csv_field(&row.object),
                 row.action,
-                csv_field(row.reason),
+                csv_field(&row.reason.to_string()),
                 stats.pose_seconds,
                 row.seconds,
                 view_seconds[0],
@@ -184,23 +202,17 @@ fn csv_field(s: &str) -> String {
 pub const FRAME_LOG_HEADER: &str =
     "frame,object,action,reason,pose_s,update_s,left_s,right_s,other_s,sah_cost";
 
-/// The union of the views the outputs need for frame `k` of the range, each traced once, in a
-/// fixed order (left, right, centre, then intermediate wobble views left to right).
-fn views_needed(p: &LoadedPipeline, eyes: &[Eye], k: usize) -> Vec<(String, f32)> {
-    let mut views: Vec<(String, f32)> = Vec::new();
+/// The union of the views the outputs need for frame `k` of the range, each traced once, in
+/// trace order (left, right, centre, then intermediate wobble views left to right).
+fn views_needed(p: &LoadedPipeline, rig: &[View], k: usize) -> Vec<View> {
+    let mut views: Vec<View> = Vec::new();
     for o in &p.spec.outputs {
-        for v in Writer::views_for(o, eyes, k) {
-            if !views.iter().any(|(n, _)| *n == v.0) {
+        for v in o.views(rig, k) {
+            if !views.contains(&v) {
                 views.push(v);
             }
         }
     }
-    let rank = |n: &str| match n {
-        "left" => 0,
-        "right" => 1,
-        "center" => 2,
-        _ => 3,
-    };
-    views.sort_by(|a, b| rank(&a.0).cmp(&rank(&b.0)).then(a.1.total_cmp(&b.1)));
+    views.sort_by(View::trace_order);
     views
 }

@@ -4,11 +4,9 @@
 
 use super::LoadedPipeline;
 use super::outputs::StereoFrame;
-use super::update::{LogRow, Updater};
-use crate::accel::BuildParams;
+use crate::accel::{BuildParams, LogRow, Updater};
 use crate::render::frame::{FilmParams, render_eye};
-use crate::render::sampling::hash32;
-use crate::render::{Eye, EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings};
+use crate::render::{EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings, View};
 use crate::scene::animation::{self, Animation};
 use crate::scene::camera::framing_camera;
 use crate::scene::light::{Light, LightKind};
@@ -23,7 +21,7 @@ pub struct FrameStats {
     /// The acceleration update, one row per object (static objects as one row).
     pub update: Vec<LogRow>,
     /// Tracing time per view, in the order traced.
-    pub view_seconds: Vec<(String, f64)>,
+    pub view_seconds: Vec<(View, f64)>,
     pub rays: RayCounts,
 }
 
@@ -61,13 +59,12 @@ impl<'p> FrameTracer<'p> {
         }
     }
 
-    /// Traces `views` (name, eye position as a fraction of the interaxial distance) of `frame`.
-    /// `on_tile` is called once per finished tile, from any thread.
+    /// Traces `views` of `frame`. `on_tile` is called once per finished tile, from any thread.
     pub fn trace(
         &mut self,
         frame: u32,
-        views: &[(String, f32)],
-        on_tile: &(dyn Fn(&str) + Sync),
+        views: &[View],
+        on_tile: &(dyn Fn(View) + Sync),
     ) -> (StereoFrame, FrameStats) {
         let (p, spec) = (self.p, &self.p.spec);
         let mut stats = FrameStats::default();
@@ -117,27 +114,20 @@ impl<'p> FrameTracer<'p> {
             frame,
             views: Vec::new(),
         };
-        for (name, fraction) in views {
-            let x_e = if spec.stereo.rig == crate::render::Rig::Mono {
-                0.0
-            } else {
-                spec.stereo.interaxial * fraction
-            };
-            let camera = EyeCamera::at_offset(camera_world, &rig, x_e);
+        for &view in views {
+            let camera = EyeCamera::new(camera_world, &rig, view);
             let film = FilmParams {
                 width: spec.render.width as usize,
                 height: spec.render.height as usize,
                 spp: spec.render.spp,
                 frame,
-                eye_seed: view_seed(name),
+                eye_seed: view.seed(),
             };
             let t = Instant::now();
-            let (image, counts) = render_eye(&integrator, &camera, &film, &|| on_tile(name));
-            stats
-                .view_seconds
-                .push((name.clone(), t.elapsed().as_secs_f64()));
+            let (image, counts) = render_eye(&integrator, &camera, &film, &|| on_tile(view));
+            stats.view_seconds.push((view, t.elapsed().as_secs_f64()));
             stats.rays.add(&counts);
-            traced.views.push((name.clone(), image));
+            traced.views.push((view, image));
         }
         (traced, stats)
     }
@@ -178,24 +168,5 @@ fn head_light(camera: &Mat4, posed: &PosedScene) -> Light {
         position,
         direction: camera.transform_vector3(Vec3::NEG_Z),
         range: None,
-    }
-}
-
-/// The views of the rig itself: left and right, or the centre for a mono rig.
-pub fn rig_views(p: &LoadedPipeline) -> Vec<(String, f32)> {
-    p.eyes()
-        .into_iter()
-        .map(|e| (e.name().to_string(), e.offset_fraction()))
-        .collect()
-}
-
-/// Sampling seed of a view: the eyes keep their historical seeds (0, 1, 2) so stored regression
-/// clips stay valid; intermediate views hash their name.
-fn view_seed(name: &str) -> u32 {
-    match name {
-        "left" => Eye::Left as u32,
-        "right" => Eye::Right as u32,
-        "center" => Eye::Center as u32,
-        _ => name.bytes().fold(0x5eed_u32, |h, b| hash32(h ^ b as u32)),
     }
 }

@@ -6,11 +6,12 @@
 //! convergence point on the axis (keystone and vertical parallax away from the centre, kept
 //! because users ask to reproduce it); `mono` is the centre eye alone.
 
+use super::view::View;
 use crate::accel::Ray;
 use glam::{Mat3, Mat4, Vec2, Vec3};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Rig {
     #[default]
@@ -18,34 +19,6 @@ pub enum Rig {
     Parallel,
     ToeIn,
     Mono,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Eye {
-    Left,
-    Right,
-    /// The mono render.
-    Center,
-}
-
-impl Eye {
-    pub fn name(self) -> &'static str {
-        match self {
-            Eye::Left => "left",
-            Eye::Right => "right",
-            Eye::Center => "center",
-        }
-    }
-
-    /// Signed fraction of the interaxial distance: -1/2 left, +1/2 right, 0 centre.
-    pub fn offset_fraction(self) -> f32 {
-        match self {
-            Eye::Left => -0.5,
-            Eye::Right => 0.5,
-            Eye::Center => 0.0,
-        }
-    }
 }
 
 /// Everything the rig needs besides the eye.
@@ -81,9 +54,14 @@ pub struct EyeCamera {
 }
 
 impl EyeCamera {
-    /// Camera for an eye placed at `x_e` metres along the rig's X axis (the stereo eyes use
-    /// `interaxial * Eye::offset_fraction`; wobble views use intermediate positions).
-    pub fn at_offset(world: Mat4, p: &RigParams, x_e: f32) -> EyeCamera {
+    /// The camera of a view: the eye sits `interaxial * offset_fraction` metres along the rig's
+    /// X axis (at the centre for a mono rig, whatever the interaxial).
+    pub fn new(world: Mat4, p: &RigParams, view: View) -> EyeCamera {
+        let x_e = if p.rig == Rig::Mono {
+            0.0
+        } else {
+            p.interaxial * view.offset_fraction()
+        };
         let tan_y = (p.yfov * 0.5).tan();
         let (shift, toe) = match p.rig {
             Rig::OffAxis => (x_e / p.convergence, Mat3::IDENTITY),
@@ -102,15 +80,6 @@ impl EyeCamera {
             znear: p.znear,
             zfar: p.zfar,
         }
-    }
-
-    pub fn for_eye(world: Mat4, p: &RigParams, eye: Eye) -> EyeCamera {
-        let x_e = if p.rig == Rig::Mono {
-            0.0
-        } else {
-            p.interaxial * eye.offset_fraction()
-        };
-        Self::at_offset(world, p, x_e)
     }
 
     /// World position of the eye.
@@ -187,8 +156,8 @@ mod tests {
     #[test]
     fn off_axis_points_on_the_convergence_plane_land_on_the_same_pixel_in_both_eyes() {
         let p = params(Rig::OffAxis);
-        let l = EyeCamera::for_eye(world(), &p, Eye::Left);
-        let r = EyeCamera::for_eye(world(), &p, Eye::Right);
+        let l = EyeCamera::new(world(), &p, View::LEFT);
+        let r = EyeCamera::new(world(), &p, View::RIGHT);
         for (x, y) in [(0.0, 0.0), (0.7, 0.3), (-1.2, -0.5), (1.5, 0.8)] {
             let q = rig_point(Vec3::new(x, y, -3.0));
             let (a, b) = (l.project(q).unwrap(), r.project(q).unwrap());
@@ -199,8 +168,8 @@ mod tests {
     #[test]
     fn off_axis_parallax_matches_the_whitted_formula_and_has_no_vertical_part() {
         let p = params(Rig::OffAxis);
-        let l = EyeCamera::for_eye(world(), &p, Eye::Left);
-        let r = EyeCamera::for_eye(world(), &p, Eye::Right);
+        let l = EyeCamera::new(world(), &p, View::LEFT);
+        let r = EyeCamera::new(world(), &p, View::RIGHT);
         let tan_x = (p.yfov * 0.5).tan() * 640.0 / 360.0;
         for z in [1.0f32, 2.0, 6.0, 50.0] {
             let q = rig_point(Vec3::new(0.3, -0.2, -z));
@@ -218,8 +187,8 @@ mod tests {
     #[test]
     fn toe_in_converges_on_the_axis_only() {
         let p = params(Rig::ToeIn);
-        let l = EyeCamera::for_eye(world(), &p, Eye::Left);
-        let r = EyeCamera::for_eye(world(), &p, Eye::Right);
+        let l = EyeCamera::new(world(), &p, View::LEFT);
+        let r = EyeCamera::new(world(), &p, View::RIGHT);
         let on_axis = rig_point(Vec3::new(0.0, 0.0, -3.0));
         assert!((l.project(on_axis).unwrap() - r.project(on_axis).unwrap()).length() < 1e-3);
         let corner = rig_point(Vec3::new(1.5, 0.8, -3.0));
@@ -234,7 +203,7 @@ mod tests {
     fn ray_and_project_are_inverse() {
         for rig in [Rig::OffAxis, Rig::Parallel, Rig::ToeIn, Rig::Mono] {
             let p = params(rig);
-            let c = EyeCamera::for_eye(world(), &p, Eye::Left);
+            let c = EyeCamera::new(world(), &p, View::LEFT);
             let (ray, _) = c.ray(123.25, 77.5);
             let px = c.project(ray.at(4.0)).unwrap();
             assert!(
@@ -245,9 +214,22 @@ mod tests {
     }
 
     #[test]
+    fn a_mono_rig_puts_every_view_at_the_centre() {
+        let p = params(Rig::Mono);
+        let centre = EyeCamera::new(world(), &p, View::CENTER).position();
+        for v in [View::LEFT, View::RIGHT, View::along_baseline(1, 3)] {
+            assert_eq!(EyeCamera::new(world(), &p, v).position(), centre);
+        }
+        let stereo = params(Rig::OffAxis);
+        let l = EyeCamera::new(world(), &stereo, View::LEFT).position();
+        let r = EyeCamera::new(world(), &stereo, View::RIGHT).position();
+        assert!(((r - l).length() - stereo.interaxial).abs() < 1e-6);
+    }
+
+    #[test]
     fn primary_rays_start_on_the_near_plane() {
         let p = params(Rig::OffAxis);
-        let c = EyeCamera::for_eye(Mat4::IDENTITY, &p, Eye::Right);
+        let c = EyeCamera::new(Mat4::IDENTITY, &p, View::RIGHT);
         let (ray, _) = c.ray(0.0, 0.0);
         assert!((ray.origin.z + p.znear).abs() < 1e-6);
     }

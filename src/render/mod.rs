@@ -7,7 +7,9 @@ pub mod frame;
 pub mod integrator;
 pub mod sampling;
 pub mod shading;
+mod view;
 
-pub use camera::{Eye, EyeCamera, Rig, RigParams};
+pub use camera::{EyeCamera, Rig, RigParams};
+pub use view::{Eye, View};
 pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings};
 pub use shading::ShadingModel;

@@ -8,6 +8,7 @@ pub mod camera;
 pub mod light;
 pub mod material;
 pub mod mesh;
+pub mod motion;
 pub mod pose;
 
 use crate::error::{Error, Result};

@@ -1,0 +1,321 @@
+//! The per-frame acceleration update, doing no more than the frame needs. Each mesh node is an
+//! object, classified once by `scene::motion`:
+//! - static: one world-space tree for all static objects, built on the first frame and reused;
+//! - rigid: an instance, its object-space tree built once and placed by the node's world matrix
+//!   each frame;
+//! - deforming: its own tree, reused on a frame where its triangles did not change; otherwise,
+//!   by `[accel] update`: `rebuild`, `refit` (the topology kept, bounded-kd-tree planes
+//!   refitted), or `auto` (refit, and rebuild once the refitted SAH cost exceeds
+//!   `auto_threshold` times the last fresh build's cost). Refitted planes bound whole triangles
+//!   where the perfect-split build referenced clipped pieces, so a refit costs tree quality at
+//!   once, not only as the mesh drifts; `auto` measures exactly that.
+//!
+//! Every frame logs one row per object (the static ones as one row): action, reason, time. The
+//! update reads the posed frame's triangles and node matrices, nothing else of the scene.
+
+use super::instances::{Part, PrimMap, TwoLevel};
+use super::params::BuildParams;
+use super::refit::RefitTree;
+use super::tree::KdTree;
+use crate::scene::Scene;
+use crate::scene::animation::Animation;
+use crate::scene::motion::{self, Motion, SceneObject};
+use crate::scene::pose::{self, PosedScene};
+use glam::Vec3;
+use serde::Deserialize;
+use std::fmt;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// How deforming meshes follow their animation (`[accel] update`).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum UpdateMode {
+    Rebuild,
+    Refit,
+    #[default]
+    Auto,
+}
+
+/// What the update did to an object this frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    Build,
+    Reuse,
+    Instance,
+    Refit,
+    Rebuild,
+}
+
+impl Action {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Action::Build => "build",
+            Action::Reuse => "reuse",
+            Action::Instance => "instance",
+            Action::Refit => "refit",
+            Action::Rebuild => "rebuild",
+        }
+    }
+}
+
+impl fmt::Display for Action {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Why the update did it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reason {
+    StaticFirstFrame,
+    StaticUnchanged,
+    RigidFirstFrame,
+    RigidMoved,
+    DeformingFirstFrame,
+    DeformingUnchanged,
+    RefitRequested,
+    RebuildRequested,
+    AutoWithinThreshold,
+    AutoPastThreshold,
+}
+
+impl fmt::Display for Reason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Reason::StaticFirstFrame => "static geometry, built once for the whole range",
+            Reason::StaticUnchanged => "static geometry",
+            Reason::RigidFirstFrame => "rigid motion: object-space tree built once",
+            Reason::RigidMoved => "rigid motion: transform updated",
+            Reason::DeformingFirstFrame => "deforming mesh (skin or morph weights): first frame",
+            Reason::DeformingUnchanged => "deforming mesh did not change this frame",
+            Reason::RefitRequested => "update = refit: topology kept, bounds refitted",
+            Reason::RebuildRequested => "update = rebuild: deforming mesh changed",
+            Reason::AutoWithinThreshold => {
+                "auto: refitted cost within the threshold of the last fresh build"
+            }
+            Reason::AutoPastThreshold => {
+                "auto: refitted cost past the threshold of the last fresh build"
+            }
+        })
+    }
+}
+
+/// One row of the frame log.
+#[derive(Clone, Debug)]
+pub struct LogRow {
+    pub object: String,
+    pub action: Action,
+    pub reason: Reason,
+    pub seconds: f64,
+    /// SAH cost of a tree built, rebuilt or refitted this frame.
+    pub sah_cost: Option<f64>,
+}
+
+/// What the update keeps for one moving object between frames.
+enum State {
+    /// Object-space triangles (from the rest pose) and, once built, their tree.
+    Rigid {
+        object_space: Vec<[Vec3; 3]>,
+        tree: Option<Arc<KdTree>>,
+    },
+    /// Nothing before the first frame.
+    Deforming(Option<Deforming>),
+}
+
+/// A deforming object's topology last built, its fresh SAH cost (the baseline `auto` measures
+/// drift against), the triangles it was last fitted to, and the part in use.
+struct Deforming {
+    topology: Arc<KdTree>,
+    baseline: f64,
+    triangles: Vec<[Vec3; 3]>,
+    part: Part,
+}
+
+pub struct Updater {
+    params: BuildParams,
+    mode: UpdateMode,
+    auto_threshold: f64,
+    /// Triangle ranges of the static objects, and their shared part once built.
+    statics: Vec<SceneObject>,
+    static_part: Option<Part>,
+    moving: Vec<(SceneObject, State)>,
+}
+
+impl Updater {
+    pub fn new(
+        scene: &Scene,
+        animations: &[&Animation],
+        params: BuildParams,
+        mode: UpdateMode,
+        auto_threshold: f32,
+    ) -> Updater {
+        let objects = motion::classify(scene, animations);
+        let rest = objects
+            .iter()
+            .any(|o| o.motion == Motion::Rigid)
+            .then(|| pose::pose(scene, &[]));
+        let (statics, moving): (Vec<_>, Vec<_>) = objects
+            .into_iter()
+            .partition(|o| o.motion == Motion::Static);
+        let moving = moving
+            .into_iter()
+            .map(|o| {
+                let state = match (&rest, o.motion) {
+                    (Some(rest), Motion::Rigid) => State::Rigid {
+                        object_space: motion::object_space_triangles(rest, &o),
+                        tree: None,
+                    },
+                    _ => State::Deforming(None),
+                };
+                (o, state)
+            })
+            .collect();
+        Updater {
+            params,
+            mode,
+            auto_threshold: auto_threshold as f64,
+            statics,
+            static_part: None,
+            moving,
+        }
+    }
+
+    /// Brings the structure up to date with a posed frame.
+    pub fn update(&mut self, posed: &PosedScene) -> (TwoLevel, Vec<LogRow>) {
+        let g = &posed.geometry;
+        let mut rows = Vec::new();
+        let mut parts = Vec::new();
+
+        if !self.statics.is_empty() {
+            let t = Instant::now();
+            let (action, reason, sah_cost) = if self.static_part.is_none() {
+                let ids: Vec<u32> = self
+                    .statics
+                    .iter()
+                    .flat_map(|o| o.triangles.clone())
+                    .collect();
+                let tris = ids.iter().map(|&i| g.triangle(i as usize)).collect();
+                let tree = Arc::new(KdTree::build(tris, self.params));
+                let cost = tree.stats().sah_cost;
+                self.static_part = Some(Part::world(tree, PrimMap::Table(Arc::new(ids))));
+                (Action::Build, Reason::StaticFirstFrame, Some(cost))
+            } else {
+                (Action::Reuse, Reason::StaticUnchanged, None)
+            };
+            parts.push(self.static_part.clone().expect("built above"));
+            rows.push(LogRow {
+                object: "static".into(),
+                action,
+                reason,
+                seconds: t.elapsed().as_secs_f64(),
+                sah_cost,
+            });
+        }
+
+        let policy = Policy {
+            params: self.params,
+            mode: self.mode,
+            threshold: self.auto_threshold,
+        };
+        for (o, state) in &mut self.moving {
+            let t = Instant::now();
+            let first = o.triangles.start;
+            let (part, action, reason, sah_cost) = match state {
+                State::Rigid { object_space, tree } => {
+                    let (reason, cost) = match tree {
+                        Some(_) => (Reason::RigidMoved, None),
+                        None => {
+                            let built = Arc::new(KdTree::build(object_space.clone(), policy.params));
+                            let cost = built.stats().sah_cost;
+                            *tree = Some(built);
+                            (Reason::RigidFirstFrame, Some(cost))
+                        }
+                    };
+                    let tree = tree.clone().expect("built above");
+                    let world = posed.node_world[o.node];
+                    let part = Part::instance(tree, PrimMap::Offset(first), world);
+                    (part, Action::Instance, reason, cost)
+                }
+                State::Deforming(slot) => {
+                    let tris = o.triangles.clone().map(|i| g.triangle(i as usize)).collect();
+                    policy.deform(slot, tris, first)
+                }
+            };
+            parts.push(part);
+            rows.push(LogRow {
+                object: o.name.clone(),
+                action,
+                reason,
+                seconds: t.elapsed().as_secs_f64(),
+                sah_cost,
+            });
+        }
+        (TwoLevel { parts }, rows)
+    }
+}
+
+/// The deforming-mesh policy: `[accel] update` and its threshold.
+struct Policy {
+    params: BuildParams,
+    mode: UpdateMode,
+    threshold: f64,
+}
+
+impl Policy {
+    /// One deforming object's update: build, reuse, refit or rebuild (see the module comment).
+    /// Returns the part, the action and reason for the log, and the SAH cost of the tree used.
+    fn deform(
+        &self,
+        slot: &mut Option<Deforming>,
+        tris: Vec<[Vec3; 3]>,
+        first: u32,
+    ) -> (Part, Action, Reason, Option<f64>) {
+        let build = |tris: Vec<[Vec3; 3]>| {
+            let topology = Arc::new(KdTree::build(tris.clone(), self.params));
+            let baseline = topology.stats().sah_cost;
+            let part = Part::world(topology.clone(), PrimMap::Offset(first));
+            Deforming {
+                topology,
+                baseline,
+                triangles: tris,
+                part,
+            }
+        };
+        let Some(d) = slot.as_mut() else {
+            let d = slot.insert(build(tris));
+            let cost = d.baseline;
+            return (
+                d.part.clone(),
+                Action::Build,
+                Reason::DeformingFirstFrame,
+                Some(cost),
+            );
+        };
+        if d.triangles == tris {
+            return (d.part.clone(), Action::Reuse, Reason::DeformingUnchanged, None);
+        }
+        if self.mode != UpdateMode::Rebuild {
+            let refit = Arc::new(RefitTree::refit(d.topology.clone(), tris.clone()));
+            let cost = refit.sah_cost();
+            if self.mode == UpdateMode::Refit || cost <= self.threshold * d.baseline {
+                d.part = Part::refitted(refit, PrimMap::Offset(first));
+                d.triangles = tris;
+                let reason = if self.mode == UpdateMode::Refit {
+                    Reason::RefitRequested
+                } else {
+                    Reason::AutoWithinThreshold
+                };
+                return (d.part.clone(), Action::Refit, reason, Some(cost));
+            }
+        }
+        let reason = if self.mode == UpdateMode::Rebuild {
+            Reason::RebuildRequested
+        } else {
+            Reason::AutoPastThreshold
+        };
+        *d = build(tris);
+        let cost = d.baseline;
+        (d.part.clone(), Action::Rebuild, reason, Some(cost))
+    }
+}

@@ -1,0 +1,335 @@
+//! The `[[output]]` tables: every output kind's keys and defaults, and every fact about a kind
+//! the rest of the pipeline asks (its path, display transform, video, the views it needs, its
+//! own validation rules) in one place. How a kind turns frames into files is `outputs.rs`.
+
+use super::template::PathTemplate;
+use crate::output::color::{Display, ToneMap};
+use crate::output::layout::Order;
+use crate::output::{anaglyph, pseudo, video, wobble};
+use crate::render::{Eye, View};
+use serde::Deserialize;
+use std::path::Path;
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum ExrViews {
+    /// One multi-view file holding every eye.
+    #[default]
+    Single,
+    /// One file per eye (`{eye}` in the path).
+    Separate,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum OutputSpec {
+    /// Multi-view OpenEXR, linear radiance.
+    Exr {
+        path: String,
+        #[serde(default)]
+        half: bool,
+        #[serde(default)]
+        views: ExrViews,
+    },
+    /// 8-bit sRGB, one file per eye.
+    Png {
+        path: String,
+        /// Stops.
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+    },
+    Anaglyph {
+        path: String,
+        #[serde(default = "default_anaglyph")]
+        method: anaglyph::Method,
+        #[serde(default)]
+        swap: bool,
+        #[serde(default)]
+        space: anaglyph::Space,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    SideBySide {
+        path: String,
+        #[serde(default)]
+        layout: Order,
+        #[serde(default)]
+        half: bool,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    TopBottom {
+        path: String,
+        #[serde(default)]
+        layout: Order,
+        #[serde(default)]
+        half: bool,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    Interlaced {
+        path: String,
+        #[serde(default)]
+        layout: Order,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    PseudoStereo {
+        path: String,
+        /// Which eye's sequence; "center" is the mono camera.
+        #[serde(default = "default_pseudo_eye")]
+        eye: Eye,
+        #[serde(default)]
+        channels_now: pseudo::Channels,
+        /// Frames.
+        #[serde(default = "default_delay")]
+        delay: usize,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+        video: Option<String>,
+    },
+    WobbleGif {
+        path: String,
+        /// Views along the baseline, left to right (2 = the two eyes).
+        #[serde(default = "default_views")]
+        views: usize,
+        #[serde(default)]
+        mode: wobble::Mode,
+        #[serde(default = "default_delay_ms")]
+        delay_ms: u32,
+        /// Repetitions; 0 = forever.
+        #[serde(default, rename = "loop")]
+        loop_count: u16,
+        /// One GIF per frame (path needs {frame}); otherwise one GIF over the whole range.
+        #[serde(default)]
+        per_frame: bool,
+        #[serde(default)]
+        dither: bool,
+        #[serde(default)]
+        exposure: f32,
+        #[serde(default)]
+        tonemap: ToneMap,
+    },
+}
+
+fn default_anaglyph() -> anaglyph::Method {
+    anaglyph::Method::DuboisRedCyan
+}
+fn default_pseudo_eye() -> Eye {
+    Eye::Left
+}
+fn default_delay() -> usize {
+    1
+}
+fn default_views() -> usize {
+    2
+}
+/// About 8 views a second, inside the 100-150 ms range wobble GIFs commonly use.
+fn default_delay_ms() -> u32 {
+    120
+}
+
+impl OutputSpec {
+    pub fn path(&self) -> &str {
+        match self {
+            OutputSpec::Exr { path, .. }
+            | OutputSpec::Png { path, .. }
+            | OutputSpec::Anaglyph { path, .. }
+            | OutputSpec::SideBySide { path, .. }
+            | OutputSpec::TopBottom { path, .. }
+            | OutputSpec::Interlaced { path, .. }
+            | OutputSpec::PseudoStereo { path, .. }
+            | OutputSpec::WobbleGif { path, .. } => path,
+        }
+    }
+
+    pub fn display(&self) -> Display {
+        let (exposure, tone_map) = match self {
+            OutputSpec::Exr { .. } => return Display::default(),
+            OutputSpec::Png {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::Anaglyph {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::SideBySide {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::TopBottom {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::Interlaced {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::PseudoStereo {
+                exposure, tonemap, ..
+            }
+            | OutputSpec::WobbleGif {
+                exposure, tonemap, ..
+            } => (*exposure, *tonemap),
+        };
+        Display { exposure, tone_map }
+    }
+
+    pub fn video(&self) -> Option<&str> {
+        match self {
+            OutputSpec::Anaglyph { video, .. }
+            | OutputSpec::SideBySide { video, .. }
+            | OutputSpec::TopBottom { video, .. }
+            | OutputSpec::Interlaced { video, .. }
+            | OutputSpec::PseudoStereo { video, .. } => video.as_deref(),
+            _ => None,
+        }
+    }
+
+    /// Outputs built from both eyes of a stereo pair.
+    fn needs_stereo(&self) -> bool {
+        matches!(
+            self,
+            OutputSpec::Anaglyph { .. }
+                | OutputSpec::SideBySide { .. }
+                | OutputSpec::TopBottom { .. }
+                | OutputSpec::Interlaced { .. }
+                | OutputSpec::WobbleGif { .. }
+        )
+    }
+
+    /// Whether the output writes one file for the whole range (a wobble GIF over the animation).
+    pub(crate) fn single_file(&self) -> bool {
+        matches!(
+            self,
+            OutputSpec::WobbleGif {
+                per_frame: false,
+                ..
+            }
+        )
+    }
+
+    /// Whether the output writes one file per eye (its path needs `{eye}` in stereo).
+    fn per_eye_files(&self) -> bool {
+        match self {
+            OutputSpec::Exr { views, .. } => *views == ExrViews::Separate,
+            OutputSpec::Png { .. } => true,
+            _ => false,
+        }
+    }
+
+    /// The views this output needs for frame `k` of the range; `rig` is the rig's own views.
+    pub fn views(&self, rig: &[View], k: usize) -> Vec<View> {
+        match self {
+            OutputSpec::Exr { .. } | OutputSpec::Png { .. } => rig.to_vec(),
+            OutputSpec::Anaglyph { .. }
+            | OutputSpec::SideBySide { .. }
+            | OutputSpec::TopBottom { .. }
+            | OutputSpec::Interlaced { .. } => vec![View::LEFT, View::RIGHT],
+            OutputSpec::PseudoStereo { eye, .. } => vec![View::Eye(*eye)],
+            OutputSpec::WobbleGif {
+                views,
+                mode,
+                per_frame,
+                ..
+            } => {
+                if *per_frame {
+                    (0..*views).map(|i| View::along_baseline(i, *views)).collect()
+                } else {
+                    let order = wobble::schedule(*views, *mode);
+                    vec![View::along_baseline(order[k % order.len()], *views)]
+                }
+            }
+        }
+    }
+
+    /// This output's own rules, given its parsed path: the key at fault and what is wrong.
+    pub(super) fn check(
+        &self,
+        path: &PathTemplate,
+        stereo: bool,
+        multi_frame: bool,
+    ) -> Result<(), (&'static str, String)> {
+        let fail = |key: &'static str, m: &str| Err((key, m.to_string()));
+        if multi_frame && !path.has_frame() && !self.single_file() {
+            return fail(
+                "path",
+                "several frames are rendered: the path needs {frame} so files do not overwrite each other",
+            );
+        }
+        if self.per_eye_files() && stereo && !path.has_eye() {
+            return fail(
+                "path",
+                "this output writes one file per eye: the path needs {eye}",
+            );
+        }
+        if self.needs_stereo() && !stereo {
+            return fail(
+                "kind",
+                "this output needs both eyes: set [stereo] rig to a stereo rig, not \"mono\"",
+            );
+        }
+        if !self.display().exposure.is_finite() {
+            return fail("exposure", "exposure must be finite");
+        }
+        match self {
+            OutputSpec::PseudoStereo { eye, delay, .. } => {
+                if *eye != Eye::Center && !stereo {
+                    return fail("eye", "a mono rig renders only the \"center\" eye");
+                }
+                if *delay > 1000 {
+                    return fail(
+                        "delay",
+                        &format!("delay must be at most 1000 frames, got {delay}"),
+                    );
+                }
+            }
+            OutputSpec::WobbleGif {
+                views,
+                delay_ms,
+                per_frame,
+                ..
+            } => {
+                if !(2..=64).contains(views) {
+                    return fail(
+                        "views",
+                        &format!("views must be between 2 and 64, got {views}"),
+                    );
+                }
+                if !(10..=60_000).contains(delay_ms) {
+                    return fail(
+                        "delay_ms",
+                        &format!("delay_ms must be between 10 and 60000, got {delay_ms}"),
+                    );
+                }
+                if *per_frame && multi_frame && !path.has_frame() {
+                    return fail(
+                        "path",
+                        "per_frame = true writes one GIF per frame: the path needs {frame}",
+                    );
+                }
+            }
+            _ => {}
+        }
+        if let Some(v) = self.video() {
+            let vt = PathTemplate::parse(v).map_err(|m| ("video", m))?;
+            if vt.has_frame() || vt.has_eye() {
+                return fail("video", "a video is one file: no {frame} or {eye} in its path");
+            }
+            video::check_path(Path::new(v)).map_err(|m| ("video", m))?;
+        }
+        Ok(())
+    }
+}
