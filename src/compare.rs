@@ -22,7 +22,7 @@
 use crate::error::Result;
 use crate::output::exr;
 pub use crate::output::planes::Planes;
-use crate::output::planes::read_planes;
+use crate::output::read_planes;
 use serde::Serialize;
 use std::fmt;
 use std::path::{Path, PathBuf};

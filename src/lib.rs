@@ -9,6 +9,7 @@ pub mod compare;
 pub mod error;
 pub mod info;
 pub mod output;
+mod paths;
 pub mod pipeline;
 pub mod render;
 pub mod scene;

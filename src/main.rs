@@ -172,7 +172,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 })
                 .map_err(|e| Error::Compare(Box::new(e)))?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&result).map_err(internal)?);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&result).map_err(internal)?
+                );
             } else {
                 let report = compare::Report {
                     a: &a,
@@ -185,7 +188,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             return Ok(ExitCode::from(result.verdict as u8));
         }
         Command::Bench(BenchCommand::Accel { options, threads }) => {
-            println!("{}", accel::CSV_HEADER);
+            println!("{}", accel::csv_header());
             let rows = thread_pool(threads)?
                 .install(|| accel::bench_accel(&options, |row| println!("{}", row.csv())))?;
             if let Some(stem) = &options.chart {
@@ -193,7 +196,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
         }
         Command::Bench(BenchCommand::ChartAccel { table, chart }) => {
-            accel::chart(&accel::read_csv(&table)?, &chart)?;
+            accel::chart(&accel::read_table(&table)?, &chart)?;
             eprintln!("wrote {0}.svg and {0}.png", chart.display());
         }
         Command::Bench(BenchCommand::Sweep { options, threads }) => {
@@ -214,7 +217,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let s = stereotrace::scene::Scene::load(&scene)?;
             let report = info::scene_info(&s, accel.then_some(split));
             if json {
-                println!("{}", serde_json::to_string_pretty(&report).map_err(internal)?);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).map_err(internal)?
+                );
             } else {
                 print!("{report}");
             }

@@ -69,7 +69,6 @@ impl KdTree {
             build_seconds: start.elapsed().as_secs_f64(),
         }
     }
-
 }
 
 struct Builder<'a> {
@@ -212,4 +211,3 @@ impl Builder<'_> {
         (below, above)
     }
 }
-

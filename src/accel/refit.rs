@@ -77,7 +77,12 @@ impl RefitTree {
 
     /// Front-to-back walk over overlapping child slabs; `on_leaf` returns the new best distance
     /// and whether to stop.
-    fn walk_slabs(&self, ray: &Ray, t_max: f32, mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
+    fn walk_slabs(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool),
+    ) {
         let nodes = &self.topology.nodes;
         if nodes.is_empty() || self.bounds.is_empty() {
             return;
@@ -144,7 +149,9 @@ fn subtree_bounds(t: &KdTree, tris: &[[Vec3; 3]], planes: &mut [[f32; 2]], i: us
     if n.is_leaf() {
         return t.prim_refs[n.leaf_range()]
             .iter()
-            .fold(Aabb::EMPTY, |b, &p| b.union(&Aabb::of_points(&tris[p as usize])));
+            .fold(Aabb::EMPTY, |b, &p| {
+                b.union(&Aabb::of_points(&tris[p as usize]))
+            });
     }
     let below = subtree_bounds(t, tris, planes, i + 1);
     let above = subtree_bounds(t, tris, planes, i + n.above_offset());

@@ -226,7 +226,8 @@ impl Updater {
                     let (reason, cost) = match tree {
                         Some(_) => (Reason::RigidMoved, None),
                         None => {
-                            let built = Arc::new(KdTree::build(object_space.clone(), policy.params));
+                            let built =
+                                Arc::new(KdTree::build(object_space.clone(), policy.params));
                             let cost = built.stats().sah_cost;
                             *tree = Some(built);
                             (Reason::RigidFirstFrame, Some(cost))
@@ -238,7 +239,11 @@ impl Updater {
                     (part, Action::Instance, reason, cost)
                 }
                 State::Deforming(slot) => {
-                    let tris = o.triangles.clone().map(|i| g.triangle(i as usize)).collect();
+                    let tris = o
+                        .triangles
+                        .clone()
+                        .map(|i| g.triangle(i as usize))
+                        .collect();
                     policy.deform(slot, tris, first)
                 }
             };
@@ -293,7 +298,12 @@ impl Policy {
             );
         };
         if d.triangles == tris {
-            return (d.part.clone(), Action::Reuse, Reason::DeformingUnchanged, None);
+            return (
+                d.part.clone(),
+                Action::Reuse,
+                Reason::DeformingUnchanged,
+                None,
+            );
         }
         if self.mode != UpdateMode::Rebuild {
             let refit = Arc::new(RefitTree::refit(d.topology.clone(), tris.clone()));

@@ -1,17 +1,18 @@
 //! `bench accel`: times kd-tree builds and ray throughput per split strategy on a ladder of meshes, with brute force (and, with the
 //! `baselines` cargo feature, the `bvh` crate) measured on the identical rays in the same run.
 
-use super::chart::{self, Chart, Front, Point, Series};
+pub use super::accel_table::{AccelRow, chart, csv_header, read_table};
+
+use super::accel_table::write_table;
 use super::median;
-use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod};
+use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
+use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, SplitMethod};
 use crate::error::{Error, Result};
-use crate::render::integrator::offset_origin;
 use crate::scene::Scene;
 use crate::scene::camera::framing_camera;
 use crate::scene::pose;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -80,177 +81,6 @@ pub struct AccelBenchOptions {
     pub chart: Option<PathBuf>,
 }
 
-#[derive(Clone, Debug, Default)]
-pub struct AccelRow {
-    pub scene: String,
-    pub method: String,
-    pub triangles: usize,
-    pub threads: usize,
-    pub build_s: f64,
-    pub build_ns_per_triangle: f64,
-    pub primary_mrays_s: f64,
-    pub shadow_mrays_s: f64,
-    pub sah_cost: Option<f64>,
-    pub nodes: Option<usize>,
-    pub leaves: Option<usize>,
-    pub max_depth: Option<usize>,
-    pub refs_per_triangle: Option<f64>,
-    pub bytes: Option<usize>,
-}
-
-pub const CSV_HEADER: &str = "scene,method,triangles,threads,build_s,build_ns_per_triangle,primary_mrays_s,shadow_mrays_s,sah_cost,nodes,leaves,max_depth,refs_per_triangle,bytes";
-
-impl AccelRow {
-    pub fn csv(&self) -> String {
-        let opt = |v: Option<String>| v.unwrap_or_default();
-        format!(
-            "{},{},{},{},{:.6},{:.1},{:.4},{:.4},{},{},{},{},{},{}",
-            self.scene,
-            self.method,
-            self.triangles,
-            self.threads,
-            self.build_s,
-            self.build_ns_per_triangle,
-            self.primary_mrays_s,
-            self.shadow_mrays_s,
-            opt(self.sah_cost.map(|v| format!("{v:.2}"))),
-            opt(self.nodes.map(|v| v.to_string())),
-            opt(self.leaves.map(|v| v.to_string())),
-            opt(self.max_depth.map(|v| v.to_string())),
-            opt(self.refs_per_triangle.map(|v| format!("{v:.3}"))),
-            opt(self.bytes.map(|v| v.to_string())),
-        )
-    }
-}
-
-/// Charts a `bench accel` table: build time against nanoseconds per primary ray, one series per
-/// scene, a Pareto front per scene (scenes of different sizes are not comparable points).
-pub fn chart(rows: &[AccelRow], stem: &Path) -> Result<()> {
-    let series = Series::group(rows.iter().map(|r| {
-        let point = Point {
-            label: r.method.clone(),
-            x: r.build_s,
-            y: 1e3 / r.primary_mrays_s,
-        };
-        (format!("{} ({} tris)", r.scene, r.triangles), point)
-    }));
-    chart::write(
-        &Chart {
-            title: "kd-tree split strategies: build time against trace time".into(),
-            x_label: "build time (s)".into(),
-            y_label: format!(
-                "ns per primary ray ({} threads)",
-                rows.first().map_or(0, |r| r.threads)
-            ),
-            series,
-            front: Front::PerSeries,
-        },
-        stem,
-    )
-}
-
-/// Reads a table written by `bench accel --csv` (or its standard output) back.
-pub fn read_csv(path: &Path) -> Result<Vec<AccelRow>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let mut lines = text.lines();
-    if lines.next() != Some(CSV_HEADER) {
-        return Err(Error::input(
-            path,
-            "not a bench accel table: the header differs",
-        ));
-    }
-    lines
-        .enumerate()
-        .map(|(i, line)| {
-            let bad = |what: &str| Error::input(path, format!("line {}: {what}", i + 2));
-            let f: Vec<&str> = line.split(',').collect();
-            if f.len() != CSV_HEADER.split(',').count() {
-                return Err(bad("wrong number of fields"));
-            }
-            let num = |k: usize| {
-                f[k].parse::<f64>()
-                    .map_err(|_| bad(&format!("'{}' is not a number", f[k])))
-            };
-            let opt = |k: usize| {
-                (!f[k].is_empty())
-                    .then(|| f[k].parse::<f64>().ok())
-                    .flatten()
-            };
-            Ok(AccelRow {
-                scene: f[0].to_string(),
-                method: f[1].to_string(),
-                triangles: num(2)? as usize,
-                threads: num(3)? as usize,
-                build_s: num(4)?,
-                build_ns_per_triangle: num(5)?,
-                primary_mrays_s: num(6)?,
-                shadow_mrays_s: num(7)?,
-                sah_cost: opt(8),
-                nodes: opt(9).map(|v| v as usize),
-                leaves: opt(10).map(|v| v as usize),
-                max_depth: opt(11).map(|v| v as usize),
-                refs_per_triangle: opt(12),
-                bytes: opt(13).map(|v| v as usize),
-            })
-        })
-        .collect()
-}
-
-/// A ray with its far limit, as replayed from a file or made from a camera.
-pub type TimedRay = (Ray, f32);
-
-/// Reads a ray file: little-endian u64 count, then per ray origin xyz, direction xyz, t_max (f32).
-pub fn read_rays(path: &Path) -> Result<Vec<TimedRay>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let count = bytes
-        .get(..8)
-        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
-        .ok_or_else(|| Error::input(path, "ray file shorter than its 8-byte count"))?;
-    let body = &bytes[8..];
-    if count.checked_mul(28) != Some(body.len() as u64) {
-        return Err(Error::input(
-            path,
-            format!(
-                "ray file says {count} rays (28 bytes each) but holds {} bytes after the count",
-                body.len()
-            ),
-        ));
-    }
-    let f =
-        |c: &[u8], i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().expect("4 bytes"));
-    body.chunks_exact(28)
-        .enumerate()
-        .map(|(i, c)| {
-            let r = Ray::new(
-                Vec3::new(f(c, 0), f(c, 1), f(c, 2)),
-                Vec3::new(f(c, 3), f(c, 4), f(c, 5)),
-            );
-            if !(r.origin.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO) {
-                return Err(Error::input(
-                    path,
-                    format!("ray {i} has a non-finite origin or a zero direction"),
-                ));
-            }
-            Ok((r, f(c, 6)))
-        })
-        .collect()
-}
-
-/// Writes rays in the format `read_rays` reads.
-pub fn write_rays(path: &Path, rays: &[TimedRay]) -> Result<()> {
-    crate::output::write_atomic(path, |w| {
-        w.write_all(&(rays.len() as u64).to_le_bytes())?;
-        for (r, t) in rays {
-            for v in [
-                r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, *t,
-            ] {
-                w.write_all(&v.to_le_bytes())?;
-            }
-        }
-        Ok(())
-    })
-}
-
 /// A UV sphere of about `n` triangles with a deterministic bumpy radius, so the mesh is not a
 /// perfectly regular grid.
 pub fn generated_mesh(n: usize) -> Vec<[Vec3; 3]> {
@@ -308,47 +138,6 @@ fn load(spec: &str) -> Result<(String, Vec<[Vec3; 3]>, Mat4, f32)> {
         .file_stem()
         .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
     Ok((name, tris, world, yfov))
-}
-
-/// Square pinhole film of `film` x `film` rays through pixel centres.
-fn camera_rays(world: Mat4, yfov: f32, film: u32) -> Vec<TimedRay> {
-    let t = (yfov * 0.5).tan();
-    let origin = world.transform_point3(Vec3::ZERO);
-    (0..film * film)
-        .map(|i| {
-            let (x, y) = ((i % film) as f32 + 0.5, (i / film) as f32 + 0.5);
-            let d = Vec3::new(
-                (2.0 * x / film as f32 - 1.0) * t,
-                (1.0 - 2.0 * y / film as f32) * t,
-                -1.0,
-            );
-            (
-                Ray::new(origin, world.transform_vector3(d).normalize()),
-                f32::INFINITY,
-            )
-        })
-        .collect()
-}
-
-/// Shadow rays from every primary hit toward a point light above and in front of the scene.
-fn shadow_rays(tree: &KdTree, tris: &[[Vec3; 3]], primary: &[TimedRay]) -> Vec<TimedRay> {
-    let (lo, hi) = tris
-        .iter()
-        .flatten()
-        .fold((Vec3::MAX, Vec3::MIN), |(a, b), &p| (a.min(p), b.max(p)));
-    let light = (lo + hi) * 0.5 + Vec3::new(0.3, 1.5, 1.0) * (hi - lo).length();
-    primary
-        .par_iter()
-        .filter_map(|(r, t)| {
-            let h = tree.closest_hit(r, *t)?;
-            let [a, b, c] = tris[h.prim as usize];
-            let p = a * (1.0 - h.b1 - h.b2) + b * h.b1 + c * h.b2;
-            let ng = (b - a).cross(c - a).normalize_or_zero();
-            let n = if ng.dot(light - p) >= 0.0 { ng } else { -ng };
-            let o = offset_origin(p, n);
-            Some((Ray::new(o, light - o), 1.0 - 1e-4))
-        })
-        .collect()
 }
 
 /// Seconds to trace all rays (closest hit or any hit), in parallel chunks.
@@ -455,13 +244,7 @@ pub fn bench_accel(
         }
     }
     if let Some(path) = &opts.csv {
-        crate::output::write_atomic(path, |w| {
-            writeln!(w, "{CSV_HEADER}")?;
-            for r in &rows {
-                writeln!(w, "{}", r.csv())?;
-            }
-            Ok(())
-        })?;
+        write_table(path, &rows)?;
     }
     Ok(rows)
 }
@@ -561,69 +344,6 @@ mod baseline {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn tables_read_back_what_was_written() {
-        let rows = [
-            AccelRow {
-                scene: "bunny".into(),
-                method: "sah".into(),
-                triangles: 948,
-                threads: 2,
-                build_s: 0.0115,
-                build_ns_per_triangle: 12102.0,
-                primary_mrays_s: 19.1684,
-                shadow_mrays_s: 6.4806,
-                sah_cost: Some(583.91),
-                nodes: Some(7055),
-                leaves: Some(3528),
-                max_depth: Some(21),
-                refs_per_triangle: Some(5.026),
-                bytes: Some(109628),
-            },
-            AccelRow {
-                scene: "bunny".into(),
-                method: "brute-force".into(),
-                triangles: 948,
-                threads: 2,
-                build_s: 0.0003,
-                primary_mrays_s: 0.5,
-                ..Default::default()
-            },
-        ];
-        let path = std::env::temp_dir().join(format!("accel-{}.csv", std::process::id()));
-        let text: Vec<String> = std::iter::once(CSV_HEADER.to_string())
-            .chain(rows.iter().map(AccelRow::csv))
-            .collect();
-        std::fs::write(&path, text.join("\n")).unwrap();
-        let back = read_csv(&path).unwrap();
-        assert_eq!(back.len(), 2);
-        for (a, b) in rows.iter().zip(&back) {
-            assert_eq!(a.csv(), b.csv());
-        }
-        std::fs::write(&path, "scene,method\nx,y\n").unwrap();
-        assert!(read_csv(&path).unwrap_err().to_string().contains("header"));
-        std::fs::remove_file(path).unwrap();
-    }
-
-    #[test]
-    fn ray_files_round_trip_and_reject_truncation() {
-        let dir = std::env::temp_dir().join(format!("st-rays-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("r.bin");
-        let rays = vec![(
-            Ray::new(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.0, 0.0, -1.0)),
-            7.5,
-        )];
-        write_rays(&path, &rays).unwrap();
-        let back = read_rays(&path).unwrap();
-        assert_eq!(back[0].0.origin, rays[0].0.origin);
-        assert_eq!(back[0].1, 7.5);
-        let bytes = std::fs::read(&path).unwrap();
-        std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
-        assert!(read_rays(&path).is_err());
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
 
     #[test]
     fn generated_meshes_have_about_the_requested_size() {

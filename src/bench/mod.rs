@@ -7,8 +7,10 @@
 //! - `memory`: the peak-heap counter the sweep reports.
 
 pub mod accel;
+mod accel_table;
 pub mod chart;
 pub mod memory;
+mod rays;
 pub mod sweep;
 
 /// The median of measurements (the mean of the middle two for an even count; NaN for none).

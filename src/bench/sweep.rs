@@ -15,11 +15,10 @@ use super::{median, memory};
 use crate::compare::{Comparison, Planes, Thresholds, compare};
 use crate::error::{Error, Result};
 use crate::output::image::Image;
-use crate::output::write_atomic;
+use crate::output::write_csv;
 use crate::pipeline::LoadedPipeline;
 use crate::pipeline::{FrameStats, FrameTracer, parse_frame_range};
 use std::fmt;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Keys set by path, with their values.
@@ -429,11 +428,34 @@ fn describe(overrides: &[(String, String)]) -> String {
 }
 
 /// Columns of `results.csv` after the swept keys.
-pub const RESULTS_COLUMNS: &str = "frame,update_s,trace_s,frame_s,frame_s_min,frame_s_max,rays,mrays_s,peak_mb,eye,mean_abs_error,psnr,percent_over";
+pub const RESULTS_COLUMNS: [&str; 13] = [
+    "frame",
+    "update_s",
+    "trace_s",
+    "frame_s",
+    "frame_s_min",
+    "frame_s_max",
+    "rays",
+    "mrays_s",
+    "peak_mb",
+    "eye",
+    "mean_abs_error",
+    "psnr",
+    "percent_over",
+];
 
 /// Columns of `summary.csv` after the swept keys.
-pub const SUMMARY_COLUMNS: &str =
-    "label,frame_s,update_s,mrays_s,peak_mb,mean_abs_error,psnr,percent_over,pareto";
+pub const SUMMARY_COLUMNS: [&str; 9] = [
+    "label",
+    "frame_s",
+    "update_s",
+    "mrays_s",
+    "peak_mb",
+    "mean_abs_error",
+    "psnr",
+    "percent_over",
+    "pareto",
+];
 
 fn write_files(
     opts: &SweepOptions,
@@ -443,51 +465,51 @@ fn write_files(
 ) -> Result<()> {
     std::fs::create_dir_all(&opts.out_dir).map_err(|e| Error::io(&opts.out_dir, e))?;
     let keys: Vec<&str> = opts.sweeps.iter().map(|(k, _)| k.as_str()).collect();
-    let head = |rest: &str| {
-        let mut h = keys.join(",");
-        if !h.is_empty() {
-            h.push(',');
-        }
-        h + rest
+    let head = |rest: &[&'static str]| -> Vec<&str> {
+        keys.iter().copied().chain(rest.iter().copied()).collect()
     };
-    let values = |r: &CombinationResult| {
+    let row = |r: &CombinationResult, rest: Vec<String>| -> Vec<String> {
         r.values
             .iter()
-            .map(|(_, v)| format!("{v},"))
-            .collect::<String>()
+            .map(|(_, v)| v.clone())
+            .chain(rest)
+            .collect()
     };
     let mb = |r: &CombinationResult| {
         r.peak_bytes
             .map(|b| format!("{:.1}", b as f64 / (1 << 20) as f64))
             .unwrap_or_default()
     };
-    write_atomic(&opts.out_dir.join("results.csv"), |w| {
-        writeln!(w, "{}", head(RESULTS_COLUMNS))?;
-        for r in results {
-            for f in &r.frames {
-                for (eye, e) in &f.eyes {
-                    writeln!(
-                        w,
-                        "{}{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{:.3},{},{eye},{:.6},{:.2},{:.4}",
-                        values(r),
-                        f.frame,
-                        f.update_s,
-                        f.trace_s,
-                        f.frame_s,
-                        f.frame_s_min,
-                        f.frame_s_max,
-                        f.rays,
-                        f.rays as f64 * 1e-6 / f.trace_s.max(1e-12),
+    let mut rows = Vec::new();
+    for r in results {
+        for f in &r.frames {
+            for (eye, e) in &f.eyes {
+                rows.push(row(
+                    r,
+                    vec![
+                        f.frame.to_string(),
+                        format!("{:.6}", f.update_s),
+                        format!("{:.6}", f.trace_s),
+                        format!("{:.6}", f.frame_s),
+                        format!("{:.6}", f.frame_s_min),
+                        format!("{:.6}", f.frame_s_max),
+                        f.rays.to_string(),
+                        format!("{:.3}", f.rays as f64 * 1e-6 / f.trace_s.max(1e-12)),
                         mb(r),
-                        e.mean_abs,
-                        e.psnr,
-                        e.percent_over
-                    )?;
-                }
+                        eye.clone(),
+                        format!("{:.6}", e.mean_abs),
+                        format!("{:.2}", e.psnr),
+                        format!("{:.4}", e.percent_over),
+                    ],
+                ));
             }
         }
-        Ok(())
-    })?;
+    }
+    write_csv(
+        &opts.out_dir.join("results.csv"),
+        &head(&RESULTS_COLUMNS),
+        &rows,
+    )?;
 
     let points: Vec<Point> = results
         .iter()
@@ -498,26 +520,31 @@ fn write_files(
         })
         .collect();
     let front = chart::pareto_front(&points);
-    write_atomic(&opts.out_dir.join("summary.csv"), |w| {
-        writeln!(w, "{}", head(SUMMARY_COLUMNS))?;
-        for (i, r) in results.iter().enumerate() {
-            writeln!(
-                w,
-                "{}{},{:.6},{:.6},{:.3},{},{:.6},{:.2},{:.4},{}",
-                values(r),
-                r.label(),
-                r.frame_seconds(),
-                r.update_seconds(),
-                r.mrays_per_second(),
-                mb(r),
-                r.mean_abs_error(),
-                r.psnr(),
-                r.percent_over(),
-                front.contains(&i)
-            )?;
-        }
-        Ok(())
-    })?;
+    let rows: Vec<Vec<String>> = results
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            row(
+                r,
+                vec![
+                    r.label(),
+                    format!("{:.6}", r.frame_seconds()),
+                    format!("{:.6}", r.update_seconds()),
+                    format!("{:.3}", r.mrays_per_second()),
+                    mb(r),
+                    format!("{:.6}", r.mean_abs_error()),
+                    format!("{:.2}", r.psnr()),
+                    format!("{:.4}", r.percent_over()),
+                    front.contains(&i).to_string(),
+                ],
+            )
+        })
+        .collect();
+    write_csv(
+        &opts.out_dir.join("summary.csv"),
+        &head(&SUMMARY_COLUMNS),
+        &rows,
+    )?;
 
     // One colour per value of the first swept key; the front runs over all combinations.
     let series = Series::group(results.iter().zip(points).map(|(r, p)| {

@@ -4,8 +4,8 @@
 //! `right.R` etc.), or one file per view carrying a `view` attribute. Scanline, ZIP, float32 or half.
 
 use super::image::Image;
-use super::write_atomic;
 use super::planes::Planes;
+use super::write_atomic;
 use crate::error::{Error, Result};
 use exr::prelude::*;
 use smallvec::SmallVec;

@@ -11,8 +11,23 @@ pub mod layout;
 pub mod planes;
 pub mod png;
 pub mod pseudo;
+mod read;
+mod table;
 pub mod video;
 pub mod wobble;
+
+pub use anaglyph::{Method as AnaglyphMethod, Space as AnaglyphSpace, anaglyph};
+pub use color::{Display, ToneMap};
+pub use exr::{write_multiview, write_single_view};
+pub use image::Image;
+pub use layout::{Order, interlaced, side_by_side, top_bottom};
+pub use planes::Planes;
+pub use png::{to_srgb8, write_png, write_rgb8};
+pub use pseudo::{Channels, PseudoStereo};
+pub use read::read_planes;
+pub use table::{csv_line, read_csv, write_csv};
+pub use video::{VideoEncoder, check_path as check_video_path, ffmpeg_available};
+pub use wobble::{Mode as WobbleMode, schedule as wobble_schedule, write_gif};
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};

@@ -1,10 +1,6 @@
-//! Images as named channel planes, the form comparisons and difference images work in, and
-//! reading any image file the tool understands (EXR with its views, PNG, JPEG) into that form.
+//! Images as named channel planes: the form comparisons and difference images work in.
 
-use super::exr;
 use super::image::Image;
-use crate::error::{Error, Result};
-use std::path::Path;
 
 /// A multi-channel image: channel planes, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,37 +30,3 @@ impl Planes {
         }
     }
 }
-
-/// The views of an image file: EXR views by name (a file without views is one view named ""),
-/// any other format the image crate reads as one view "" with its R, G, B(, A) in [0, 1].
-pub fn read_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
-    let is_exr = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if is_exr {
-        return exr::read_view_planes(path);
-    }
-    let img =
-        image::open(path).map_err(|e| Error::input(path, format!("cannot read image: {e}")))?;
-    let has_alpha = img.color().has_alpha();
-    let rgba = img.to_rgba32f();
-    let (w, h) = (rgba.width() as usize, rgba.height() as usize);
-    let nc = if has_alpha { 4 } else { 3 };
-    let data = (0..nc)
-        .map(|c| rgba.pixels().map(|p| p[c]).collect())
-        .collect();
-    let names = ["R", "G", "B", "A"][..nc]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    Ok(vec![(
-        String::new(),
-        Planes {
-            width: w,
-            height: h,
-            names,
-            data,
-        },
-    )])
-}
-

@@ -3,7 +3,11 @@
 
 /// Sets `key` (dotted, with `[i]` for an array element: `output[0].method`) to `value`, parsed as
 /// a TOML value, or taken as a string when it is not one (`sah`, `cook-torrance`).
-pub(super) fn set_key(doc: &mut toml_edit::DocumentMut, key: &str, value: &str) -> Result<(), String> {
+pub(super) fn set_key(
+    doc: &mut toml_edit::DocumentMut,
+    key: &str,
+    value: &str,
+) -> Result<(), String> {
     use toml_edit::{Item, Table, TableLike, Value};
     let parsed = value
         .parse::<Value>()

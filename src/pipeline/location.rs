@@ -45,4 +45,3 @@ pub(super) fn locate(src: &str, keys: &[Key]) -> Option<Range<usize>> {
     }
     span
 }
-

@@ -17,7 +17,7 @@ mod validate;
 
 pub use location::{Key, line_column};
 pub use output_spec::{ExrViews, OutputSpec};
-pub use run::{FRAME_LOG_HEADER, RunOptions, RunSummary, run};
+pub use run::{FRAME_LOG_COLUMNS, RunOptions, RunSummary, run};
 pub use schema::{
     AccelSection, FramesSection, Pipeline, RenderSection, SceneSection, Selector, StereoSection,
 };
@@ -25,10 +25,9 @@ pub use template::PathTemplate;
 pub use trace::{FrameStats, FrameTracer};
 
 use crate::error::{Error, Result};
-use crate::output::video;
+use crate::output::ffmpeg_available;
 use crate::render::{Rig, View};
-use crate::scene::Scene;
-use crate::scene::animation::Animation;
+use crate::scene::{Animation, Scene};
 use edit::set_key;
 use location::{Invalid, invalid, locate};
 use std::fmt;
@@ -126,7 +125,7 @@ impl LoadedPipeline {
         }
         check_animation(&spec, &scene).map_err(at)?;
         if let Some(i) = spec.outputs.iter().position(|o| o.video().is_some())
-            && !video::ffmpeg_available()
+            && !ffmpeg_available()
         {
             return Err(at(invalid(
                 &[Key::Name("output"), Key::Index(i), Key::Name("video")],

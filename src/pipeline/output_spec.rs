@@ -3,9 +3,10 @@
 //! own validation rules) in one place. How a kind turns frames into files is `outputs.rs`.
 
 use super::template::PathTemplate;
-use crate::output::color::{Display, ToneMap};
-use crate::output::layout::Order;
-use crate::output::{anaglyph, pseudo, video, wobble};
+use crate::output::{
+    AnaglyphMethod, AnaglyphSpace, Channels, Display, Order, ToneMap, WobbleMode, check_video_path,
+    wobble_schedule,
+};
 use crate::render::{Eye, View};
 use serde::Deserialize;
 use std::path::Path;
@@ -43,41 +44,19 @@ pub enum OutputSpec {
     Anaglyph {
         path: String,
         #[serde(default = "default_anaglyph")]
-        method: anaglyph::Method,
+        method: AnaglyphMethod,
         #[serde(default)]
         swap: bool,
         #[serde(default)]
-        space: anaglyph::Space,
+        space: AnaglyphSpace,
         #[serde(default)]
         exposure: f32,
         #[serde(default)]
         tonemap: ToneMap,
         video: Option<String>,
     },
-    SideBySide {
-        path: String,
-        #[serde(default)]
-        layout: Order,
-        #[serde(default)]
-        half: bool,
-        #[serde(default)]
-        exposure: f32,
-        #[serde(default)]
-        tonemap: ToneMap,
-        video: Option<String>,
-    },
-    TopBottom {
-        path: String,
-        #[serde(default)]
-        layout: Order,
-        #[serde(default)]
-        half: bool,
-        #[serde(default)]
-        exposure: f32,
-        #[serde(default)]
-        tonemap: ToneMap,
-        video: Option<String>,
-    },
+    SideBySide(PairLayout),
+    TopBottom(PairLayout),
     Interlaced {
         path: String,
         #[serde(default)]
@@ -94,7 +73,7 @@ pub enum OutputSpec {
         #[serde(default = "default_pseudo_eye")]
         eye: Eye,
         #[serde(default)]
-        channels_now: pseudo::Channels,
+        channels_now: Channels,
         /// Frames.
         #[serde(default = "default_delay")]
         delay: usize,
@@ -110,7 +89,7 @@ pub enum OutputSpec {
         #[serde(default = "default_views")]
         views: usize,
         #[serde(default)]
-        mode: wobble::Mode,
+        mode: WobbleMode,
         #[serde(default = "default_delay_ms")]
         delay_ms: u32,
         /// Repetitions; 0 = forever.
@@ -128,8 +107,26 @@ pub enum OutputSpec {
     },
 }
 
-fn default_anaglyph() -> anaglyph::Method {
-    anaglyph::Method::DuboisRedCyan
+/// The keys of the two layouts that place both eyes in one image (side by side, top and bottom).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PairLayout {
+    pub path: String,
+    /// `parallel` (left eye first) or `cross`.
+    #[serde(default)]
+    pub layout: Order,
+    /// Squeeze each eye to half the width (height for top-bottom).
+    #[serde(default)]
+    pub half: bool,
+    #[serde(default)]
+    pub exposure: f32,
+    #[serde(default)]
+    pub tonemap: ToneMap,
+    pub video: Option<String>,
+}
+
+fn default_anaglyph() -> AnaglyphMethod {
+    AnaglyphMethod::DuboisRedCyan
 }
 fn default_pseudo_eye() -> Eye {
     Eye::Left
@@ -151,8 +148,8 @@ impl OutputSpec {
             OutputSpec::Exr { path, .. }
             | OutputSpec::Png { path, .. }
             | OutputSpec::Anaglyph { path, .. }
-            | OutputSpec::SideBySide { path, .. }
-            | OutputSpec::TopBottom { path, .. }
+            | OutputSpec::SideBySide(PairLayout { path, .. })
+            | OutputSpec::TopBottom(PairLayout { path, .. })
             | OutputSpec::Interlaced { path, .. }
             | OutputSpec::PseudoStereo { path, .. }
             | OutputSpec::WobbleGif { path, .. } => path,
@@ -168,12 +165,12 @@ impl OutputSpec {
             | OutputSpec::Anaglyph {
                 exposure, tonemap, ..
             }
-            | OutputSpec::SideBySide {
+            | OutputSpec::SideBySide(PairLayout {
                 exposure, tonemap, ..
-            }
-            | OutputSpec::TopBottom {
+            })
+            | OutputSpec::TopBottom(PairLayout {
                 exposure, tonemap, ..
-            }
+            })
             | OutputSpec::Interlaced {
                 exposure, tonemap, ..
             }
@@ -190,8 +187,8 @@ impl OutputSpec {
     pub fn video(&self) -> Option<&str> {
         match self {
             OutputSpec::Anaglyph { video, .. }
-            | OutputSpec::SideBySide { video, .. }
-            | OutputSpec::TopBottom { video, .. }
+            | OutputSpec::SideBySide(PairLayout { video, .. })
+            | OutputSpec::TopBottom(PairLayout { video, .. })
             | OutputSpec::Interlaced { video, .. }
             | OutputSpec::PseudoStereo { video, .. } => video.as_deref(),
             _ => None,
@@ -203,8 +200,8 @@ impl OutputSpec {
         matches!(
             self,
             OutputSpec::Anaglyph { .. }
-                | OutputSpec::SideBySide { .. }
-                | OutputSpec::TopBottom { .. }
+                | OutputSpec::SideBySide(_)
+                | OutputSpec::TopBottom(_)
                 | OutputSpec::Interlaced { .. }
                 | OutputSpec::WobbleGif { .. }
         )
@@ -235,8 +232,8 @@ impl OutputSpec {
         match self {
             OutputSpec::Exr { .. } | OutputSpec::Png { .. } => rig.to_vec(),
             OutputSpec::Anaglyph { .. }
-            | OutputSpec::SideBySide { .. }
-            | OutputSpec::TopBottom { .. }
+            | OutputSpec::SideBySide(_)
+            | OutputSpec::TopBottom(_)
             | OutputSpec::Interlaced { .. } => vec![View::LEFT, View::RIGHT],
             OutputSpec::PseudoStereo { eye, .. } => vec![View::Eye(*eye)],
             OutputSpec::WobbleGif {
@@ -246,9 +243,11 @@ impl OutputSpec {
                 ..
             } => {
                 if *per_frame {
-                    (0..*views).map(|i| View::along_baseline(i, *views)).collect()
+                    (0..*views)
+                        .map(|i| View::along_baseline(i, *views))
+                        .collect()
                 } else {
-                    let order = wobble::schedule(*views, *mode);
+                    let order = wobble_schedule(*views, *mode);
                     vec![View::along_baseline(order[k % order.len()], *views)]
                 }
             }
@@ -326,9 +325,12 @@ impl OutputSpec {
         if let Some(v) = self.video() {
             let vt = PathTemplate::parse(v).map_err(|m| ("video", m))?;
             if vt.has_frame() || vt.has_eye() {
-                return fail("video", "a video is one file: no {frame} or {eye} in its path");
+                return fail(
+                    "video",
+                    "a video is one file: no {frame} or {eye} in its path",
+                );
             }
-            video::check_path(Path::new(v)).map_err(|m| ("video", m))?;
+            check_video_path(Path::new(v)).map_err(|m| ("video", m))?;
         }
         Ok(())
     }

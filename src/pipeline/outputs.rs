@@ -3,13 +3,14 @@
 //! wobble GIF's frames, a video stream) and finish at the end of the range. The image work itself
 //! lives in `output/`; this module only routes frames and paths.
 
-use super::output_spec::{ExrViews, OutputSpec};
+use super::output_spec::{ExrViews, OutputSpec, PairLayout};
 use super::template::PathTemplate;
 use crate::error::{Error, Result};
-use crate::output::image::Image;
-use crate::output::pseudo::PseudoStereo;
-use crate::output::video::VideoEncoder;
-use crate::output::{anaglyph, exr, layout, png, wobble};
+use crate::output::{
+    Display, Image, PseudoStereo, VideoEncoder, anaglyph, interlaced, side_by_side, to_srgb8,
+    top_bottom, wobble_schedule, write_gif, write_multiview, write_png, write_rgb8,
+    write_single_view,
+};
 use crate::render::View;
 use std::path::{Path, PathBuf};
 
@@ -96,12 +97,12 @@ impl Writer {
                     ExrViews::Single => {
                         let named: Vec<(&str, &Image)> =
                             eyes.iter().map(|(n, img)| (n.as_str(), *img)).collect();
-                        exr::write_multiview(&path(""), &named, *half)?;
+                        write_multiview(&path(""), &named, *half)?;
                         files.push(path(""));
                     }
                     ExrViews::Separate => {
                         for (name, img) in &eyes {
-                            exr::write_single_view(&path(name), name, img, *half)?;
+                            write_single_view(&path(name), name, img, *half)?;
                             files.push(path(name));
                         }
                     }
@@ -110,7 +111,7 @@ impl Writer {
             }
             OutputSpec::Png { .. } => {
                 for &v in &self.rig {
-                    png::write_png(&path(&v.name()), f.view(v)?, &display)?;
+                    write_png(&path(&v.name()), f.view(v)?, &display)?;
                     files.push(path(&v.name()));
                 }
                 None
@@ -125,27 +126,27 @@ impl Writer {
                 Some((
                     l.width,
                     l.height,
-                    anaglyph::anaglyph(l, r, *method, *swap, *space, &display),
+                    anaglyph(l, r, *method, *swap, *space, &display),
                 ))
             }
-            OutputSpec::SideBySide {
+            OutputSpec::SideBySide(PairLayout {
                 layout: order,
                 half,
                 ..
-            } => Some(encode(
-                &layout::side_by_side(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order, *half),
+            }) => Some(encode(
+                &side_by_side(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order, *half),
                 &display,
             )),
-            OutputSpec::TopBottom {
+            OutputSpec::TopBottom(PairLayout {
                 layout: order,
                 half,
                 ..
-            } => Some(encode(
-                &layout::top_bottom(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order, *half),
+            }) => Some(encode(
+                &top_bottom(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order, *half),
                 &display,
             )),
             OutputSpec::Interlaced { layout: order, .. } => Some(encode(
-                &layout::interlaced(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order),
+                &interlaced(f.view(View::LEFT)?, f.view(View::RIGHT)?, *order),
                 &display,
             )),
             OutputSpec::PseudoStereo { eye, .. } => {
@@ -168,7 +169,7 @@ impl Writer {
             } => {
                 let needed = self.spec.views(&self.rig, self.k);
                 let order = if *per_frame {
-                    wobble::schedule(*views, *mode)
+                    wobble_schedule(*views, *mode)
                 } else {
                     vec![0]
                 };
@@ -180,7 +181,7 @@ impl Writer {
                 }
                 if *per_frame {
                     let p = path("");
-                    wobble::write_gif(
+                    write_gif(
                         &p,
                         self.gif_size.0,
                         self.gif_size.1,
@@ -198,7 +199,7 @@ impl Writer {
         };
         if let Some((w, h, rgb)) = sequence {
             let p = path("");
-            png::write_rgb8(&p, w, h, &rgb)?;
+            write_rgb8(&p, w, h, &rgb)?;
             files.push(p);
             if let Some(v) = self.video.as_mut() {
                 v.push(w, h, &rgb)?;
@@ -220,7 +221,7 @@ impl Writer {
         } = &self.spec
         {
             let p = self.template.path(&self.out_dir, 0, "");
-            wobble::write_gif(
+            write_gif(
                 &p,
                 self.gif_size.0,
                 self.gif_size.1,
@@ -238,6 +239,6 @@ impl Writer {
     }
 }
 
-fn encode(img: &Image, display: &crate::output::color::Display) -> (usize, usize, Vec<u8>) {
-    (img.width, img.height, png::to_srgb8(img, display))
+fn encode(img: &Image, display: &Display) -> (usize, usize, Vec<u8>) {
+    (img.width, img.height, to_srgb8(img, display))
 }

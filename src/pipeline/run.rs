@@ -6,12 +6,10 @@ use super::LoadedPipeline;
 use super::outputs::Writer;
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
-use crate::output::write_atomic;
-use crate::render::frame::tile_count;
-use crate::render::{RayCounts, View};
+use crate::output::write_csv;
+use crate::render::{RayCounts, View, tile_count};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::fmt;
-use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -127,7 +125,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         .map(|(o, t)| Writer::new(o, t, &rig, &opts.out_dir, spec.frames.fps))
         .collect();
     let mut summary = RunSummary::default();
-    let mut log = vec![FRAME_LOG_HEADER.to_string()];
+    let mut log: Vec<Vec<String>> = Vec::new();
     let mut tracer = FrameTracer::new(p);
     for (k, frame) in (start..=end).enumerate() {
         tile_bar.reset();
@@ -147,18 +145,18 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         summary.rays.add(&stats.rays);
         summary.eyes_traced += stats.view_seconds.len();
         for row in &stats.update {
-            log.push(format!(
-                "{frame},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{}",
-                csv_field(&row.object),
-                row.action,
-                csv_field(&row.reason.to_string()),
-                stats.pose_seconds,
-                row.seconds,
-                view_seconds[0],
-                view_seconds[1],
-                view_seconds[2],
-                row.sah_cost.map(|c| format!("{c:.3}")).unwrap_or_default()
-            ));
+            log.push(vec![
+                frame.to_string(),
+                row.object.clone(),
+                row.action.to_string(),
+                row.reason.to_string(),
+                format!("{:.6}", stats.pose_seconds),
+                format!("{:.6}", row.seconds),
+                format!("{:.6}", view_seconds[0]),
+                format!("{:.6}", view_seconds[1]),
+                format!("{:.6}", view_seconds[2]),
+                row.sah_cost.map(|c| format!("{c:.3}")).unwrap_or_default(),
+            ]);
         }
         let t = Instant::now();
         for wr in &mut writers {
@@ -174,12 +172,8 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     }
     summary.output_seconds += t.elapsed().as_secs_f64();
     let log_path = opts.out_dir.join("frame-log.csv");
-    write_atomic(&log_path, |f| {
-        for line in &log {
-            writeln!(f, "{line}")?;
-        }
-        Ok(())
-    })?;
+    write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
+
     summary.files.push(log_path);
     tile_bar.finish_and_clear();
     frame_bar.finish_and_clear();
@@ -187,20 +181,13 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     Ok(summary)
 }
 
-/// A CSV field, quoted when it holds a comma or a quote.
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}
-
 /// Columns of `frame-log.csv`: one row per frame and object, what the acceleration update did
 /// and why, and where the time went (`update_s` per object; `left_s`, `right_s`, `other_s`: the
 /// frame's tracing per view, repeated on each of its rows; `sah_cost` when a tree was built).
-pub const FRAME_LOG_HEADER: &str =
-    "frame,object,action,reason,pose_s,update_s,left_s,right_s,other_s,sah_cost";
+pub const FRAME_LOG_COLUMNS: [&str; 10] = [
+    "frame", "object", "action", "reason", "pose_s", "update_s", "left_s", "right_s", "other_s",
+    "sah_cost",
+];
 
 /// The union of the views the outputs need for frame `k` of the range, each traced once, in
 /// trace order (left, right, centre, then intermediate wobble views left to right).

@@ -192,4 +192,16 @@ mod tests {
             "[scene]\npath = \"s\"\n[[output]]\nkind = \"exr\"\npath = \"a.exr\"\nexposure = 1\n";
         assert!(Pipeline::parse(Path::new("p.toml"), src).is_err());
     }
+
+    #[test]
+    fn layout_outputs_refuse_keys_they_do_not_have() {
+        let ok = "[scene]\npath = \"s\"\n[[output]]\nkind = \"top-bottom\"\npath = \"a.png\"\nhalf = true\n";
+        let p = Pipeline::parse(Path::new("p.toml"), ok).unwrap();
+        assert!(matches!(&p.outputs[0], OutputSpec::TopBottom(l) if l.half));
+        let bad = "[scene]\npath = \"s\"\n[[output]]\nkind = \"side-by-side\"\npath = \"a.png\"\nviews = 3\n";
+        let e = Pipeline::parse(Path::new("p.toml"), bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("views"), "{e}");
+    }
 }

@@ -1,7 +1,8 @@
 //! Output path templates: `{frame}`, `{frame:0N}` (zero-padded to N digits) and `{eye}`. Paths are
 //! relative to the output directory and may not leave it.
 
-use std::path::{Component, Path, PathBuf};
+use crate::paths::{Outside, depth_inside};
+use std::path::{Path, PathBuf};
 
 #[derive(Clone, Debug, PartialEq)]
 enum Piece {
@@ -83,31 +84,16 @@ impl PathTemplate {
     }
 }
 
-/// A relative path whose `..` never climbs above its start.
+/// A relative path whose `..` never climbs above its start and that names a file.
 fn check_inside(p: &str) -> Result<(), String> {
-    let path = Path::new(p);
-    let mut depth = 0i32;
-    for c in path.components() {
-        match c {
-            Component::Normal(_) => depth += 1,
-            Component::CurDir => {}
-            Component::ParentDir => {
-                depth -= 1;
-                if depth < 0 {
-                    return Err(format!("output path '{p}' escapes the output directory"));
-                }
-            }
-            Component::RootDir | Component::Prefix(_) => {
-                return Err(format!(
-                    "output path '{p}' is absolute; it must be relative to the output directory (--out)"
-                ));
-            }
-        }
+    match depth_inside(Path::new(p)) {
+        Ok(0) => Err(format!("output path '{p}' names no file")),
+        Ok(_) => Ok(()),
+        Err(Outside::Escapes) => Err(format!("output path '{p}' escapes the output directory")),
+        Err(Outside::Absolute) => Err(format!(
+            "output path '{p}' is absolute; it must be relative to the output directory (--out)"
+        )),
     }
-    if depth == 0 {
-        return Err(format!("output path '{p}' names no file"));
-    }
-    Ok(())
 }
 
 #[cfg(test)]

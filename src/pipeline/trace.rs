@@ -5,12 +5,11 @@
 use super::LoadedPipeline;
 use super::outputs::StereoFrame;
 use crate::accel::{BuildParams, LogRow, Updater};
-use crate::render::frame::{FilmParams, render_eye};
-use crate::render::{EyeCamera, Integrator, RayCounts, RigParams, SceneView, TraceSettings, View};
-use crate::scene::animation::{self, Animation};
-use crate::scene::camera::framing_camera;
-use crate::scene::light::{Light, LightKind};
-use crate::scene::pose::{self, PosedScene};
+use crate::render::{
+    EyeCamera, FilmParams, Integrator, RayCounts, RigParams, SceneView, TraceSettings, View,
+    render_eye,
+};
+use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
 use std::time::Instant;
 
@@ -70,12 +69,7 @@ impl<'p> FrameTracer<'p> {
         let mut stats = FrameStats::default();
         let t = Instant::now();
         let time = frame as f32 / spec.frames.fps;
-        let overrides = if self.animations.is_empty() {
-            Vec::new()
-        } else {
-            animation::sample(&self.animations, p.scene.nodes.len(), time)
-        };
-        let posed = pose::pose(&p.scene, &overrides);
+        let posed = p.scene.pose_at(&self.animations, time);
         stats.pose_seconds = t.elapsed().as_secs_f64();
 
         let (accel, update_rows) = self.updater.update(&posed);

@@ -9,7 +9,9 @@ use crate::render::Rig;
 use crate::scene::Scene;
 
 /// Range checks that need no scene; returns the parsed output templates.
-pub(super) fn validate_values(p: &Pipeline) -> std::result::Result<Vec<PathTemplate>, Invalid<'static>> {
+pub(super) fn validate_values(
+    p: &Pipeline,
+) -> std::result::Result<Vec<PathTemplate>, Invalid<'static>> {
     use Key::Name as N;
     let r = &p.render;
     for (key, v) in [("width", r.width), ("height", r.height)] {
@@ -167,7 +169,10 @@ pub(super) fn resolve_camera(
     Ok(Some(chosen))
 }
 
-pub(super) fn check_animation(p: &Pipeline, scene: &Scene) -> std::result::Result<(), Invalid<'static>> {
+pub(super) fn check_animation(
+    p: &Pipeline,
+    scene: &Scene,
+) -> std::result::Result<(), Invalid<'static>> {
     let keys = [Key::Name("scene"), Key::Name("animation")];
     match &p.scene.animation {
         Selector::Name(n) if n == "none" => return Ok(()),

@@ -10,6 +10,7 @@ pub mod shading;
 mod view;
 
 pub use camera::{EyeCamera, Rig, RigParams};
-pub use view::{Eye, View};
+pub use frame::{FilmParams, render_eye, tile_count};
 pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings};
 pub use shading::ShadingModel;
+pub use view::{Eye, View};

@@ -31,7 +31,10 @@ pub enum View {
     Eye(Eye),
     /// View `index` of `count` evenly spaced along the baseline, strictly between the eyes
     /// (`0 < index < count - 1`; the ends are the eyes themselves).
-    Between { index: usize, count: usize },
+    Between {
+        index: usize,
+        count: usize,
+    },
 }
 
 impl View {

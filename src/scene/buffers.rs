@@ -4,8 +4,9 @@
 //! the reader return short data or trip its debug assertions.
 
 use crate::error::{Error, Result};
+use crate::paths::{Outside, depth_inside};
 use base64::Engine;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 /// Bytes behind a URI: `data:` URIs are decoded, anything else is a relative path that must stay
 /// inside the folder of the scene file.
@@ -46,28 +47,21 @@ pub fn resolve_relative(scene_file: &Path, object: &str, uri: &str) -> Result<Pa
             format!("URI '{uri}' is not a relative path inside the scene's folder"),
         ));
     }
-    let mut depth: i32 = 0;
-    for component in Path::new(&decoded).components() {
-        match component {
-            Component::Normal(_) => depth += 1,
-            Component::CurDir => {}
-            Component::ParentDir => {
-                depth -= 1;
-                if depth < 0 {
-                    return Err(Error::scene(
-                        scene_file,
-                        object,
-                        format!("URI '{uri}' escapes the scene's folder"),
-                    ));
-                }
-            }
-            _ => {
-                return Err(Error::scene(
-                    scene_file,
-                    object,
-                    format!("URI '{uri}' is not a relative path"),
-                ));
-            }
+    match depth_inside(Path::new(&decoded)) {
+        Ok(_) => {}
+        Err(Outside::Escapes) => {
+            return Err(Error::scene(
+                scene_file,
+                object,
+                format!("URI '{uri}' escapes the scene's folder"),
+            ));
+        }
+        Err(Outside::Absolute) => {
+            return Err(Error::scene(
+                scene_file,
+                object,
+                format!("URI '{uri}' is not a relative path"),
+            ));
         }
     }
     let base = scene_file.parent().unwrap_or(Path::new("."));

@@ -11,11 +11,15 @@ pub mod mesh;
 pub mod motion;
 pub mod pose;
 
+pub use animation::Animation;
+pub use camera::framing_camera;
+pub use light::{Light, LightKind};
+pub use pose::PosedScene;
+
 use crate::error::{Error, Result};
-use animation::Animation;
 use camera::CameraDef;
 use glam::{Mat4, Quat, Vec3};
-use light::{LightDef, LightKind};
+use light::LightDef;
 use material::{Material, Texture};
 use mesh::Mesh;
 use std::path::{Path, PathBuf};
@@ -226,6 +230,16 @@ impl Scene {
                 .collect::<Result<_>>()?,
             warnings,
         })
+    }
+
+    /// The scene at time `t` (seconds) under `animations` (none: the rest pose).
+    pub fn pose_at(&self, animations: &[&Animation], t: f32) -> PosedScene {
+        let overrides = if animations.is_empty() {
+            Vec::new()
+        } else {
+            animation::sample(animations, self.nodes.len(), t)
+        };
+        pose::pose(self, &overrides)
     }
 
     pub fn triangle_count(&self) -> usize {

@@ -1,0 +1,130 @@
+//! The rays `bench accel` traces: camera rays through a square film, shadow rays from their hits
+//! toward a light, and the binary ray files that replay identical rays in another tracer.
+
+use crate::accel::{Intersect, KdTree, Ray};
+use crate::error::{Error, Result};
+use crate::render::integrator::offset_origin;
+use glam::{Mat4, Vec3};
+use rayon::prelude::*;
+use std::io::Write;
+use std::path::Path;
+
+/// A ray with its far limit, as replayed from a file or made from a camera.
+pub type TimedRay = (Ray, f32);
+
+/// Reads a ray file: little-endian u64 count, then per ray origin xyz, direction xyz, t_max (f32).
+pub fn read_rays(path: &Path) -> Result<Vec<TimedRay>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let count = bytes
+        .get(..8)
+        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+        .ok_or_else(|| Error::input(path, "ray file shorter than its 8-byte count"))?;
+    let body = &bytes[8..];
+    if count.checked_mul(28) != Some(body.len() as u64) {
+        return Err(Error::input(
+            path,
+            format!(
+                "ray file says {count} rays (28 bytes each) but holds {} bytes after the count",
+                body.len()
+            ),
+        ));
+    }
+    let f =
+        |c: &[u8], i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().expect("4 bytes"));
+    body.chunks_exact(28)
+        .enumerate()
+        .map(|(i, c)| {
+            let r = Ray::new(
+                Vec3::new(f(c, 0), f(c, 1), f(c, 2)),
+                Vec3::new(f(c, 3), f(c, 4), f(c, 5)),
+            );
+            if !(r.origin.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO) {
+                return Err(Error::input(
+                    path,
+                    format!("ray {i} has a non-finite origin or a zero direction"),
+                ));
+            }
+            Ok((r, f(c, 6)))
+        })
+        .collect()
+}
+
+/// Writes rays in the format `read_rays` reads.
+pub fn write_rays(path: &Path, rays: &[TimedRay]) -> Result<()> {
+    crate::output::write_atomic(path, |w| {
+        w.write_all(&(rays.len() as u64).to_le_bytes())?;
+        for (r, t) in rays {
+            for v in [
+                r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, *t,
+            ] {
+                w.write_all(&v.to_le_bytes())?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Square pinhole film of `film` x `film` rays through pixel centres.
+pub fn camera_rays(world: Mat4, yfov: f32, film: u32) -> Vec<TimedRay> {
+    let t = (yfov * 0.5).tan();
+    let origin = world.transform_point3(Vec3::ZERO);
+    (0..film * film)
+        .map(|i| {
+            let (x, y) = ((i % film) as f32 + 0.5, (i / film) as f32 + 0.5);
+            let d = Vec3::new(
+                (2.0 * x / film as f32 - 1.0) * t,
+                (1.0 - 2.0 * y / film as f32) * t,
+                -1.0,
+            );
+            (
+                Ray::new(origin, world.transform_vector3(d).normalize()),
+                f32::INFINITY,
+            )
+        })
+        .collect()
+}
+
+/// Shadow rays from every primary hit toward a point light above and in front of the scene.
+pub fn shadow_rays(tree: &KdTree, tris: &[[Vec3; 3]], primary: &[TimedRay]) -> Vec<TimedRay> {
+    let (lo, hi) = tris
+        .iter()
+        .flatten()
+        .fold((Vec3::MAX, Vec3::MIN), |(a, b), &p| (a.min(p), b.max(p)));
+    let light = (lo + hi) * 0.5 + Vec3::new(0.3, 1.5, 1.0) * (hi - lo).length();
+    primary
+        .par_iter()
+        .filter_map(|(r, t)| {
+            let h = tree.closest_hit(r, *t)?;
+            let [a, b, c] = tris[h.prim as usize];
+            let p = a * (1.0 - h.b1 - h.b2) + b * h.b1 + c * h.b2;
+            let ng = (b - a).cross(c - a).normalize_or_zero();
+            let n = if ng.dot(light - p) >= 0.0 { ng } else { -ng };
+            let o = offset_origin(p, n);
+            Some((Ray::new(o, light - o), 1.0 - 1e-4))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ray_files_round_trip_and_reject_truncation() {
+        let dir = std::env::temp_dir().join(format!("st-rays-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("r.bin");
+        let rays = vec![(
+            Ray::new(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.0, 0.0, -1.0)),
+            7.5,
+        )];
+        write_rays(&path, &rays).unwrap();
+        let back = read_rays(&path).unwrap();
+        assert_eq!(back[0].0.origin, rays[0].0.origin);
+        assert_eq!(back[0].1, 7.5);
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+        assert!(read_rays(&path).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
