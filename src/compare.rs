@@ -20,8 +20,8 @@
 //! directly, whatever their view names.
 
 use crate::error::Result;
+pub use crate::output::Planes;
 use crate::output::exr;
-pub use crate::output::planes::Planes;
 use crate::output::read_planes;
 use serde::Serialize;
 use std::fmt;

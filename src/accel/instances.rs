@@ -89,7 +89,7 @@ impl Part {
 /// The frame's acceleration structure: its parts.
 #[derive(Clone, Default)]
 pub struct TwoLevel {
-    pub parts: Vec<Part>,
+    pub(super) parts: Vec<Part>,
 }
 
 impl Intersect for TwoLevel {

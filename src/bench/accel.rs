@@ -9,7 +9,7 @@ use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
 use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, SplitMethod};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
-use crate::scene::camera::framing_camera;
+use crate::scene::framing_camera;
 use crate::scene::pose;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;

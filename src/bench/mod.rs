@@ -8,7 +8,7 @@
 
 pub mod accel;
 mod accel_table;
-pub mod chart;
+mod chart;
 pub mod memory;
 mod rays;
 pub mod sweep;

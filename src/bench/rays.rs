@@ -3,7 +3,7 @@
 
 use crate::accel::{Intersect, KdTree, Ray};
 use crate::error::{Error, Result};
-use crate::render::integrator::offset_origin;
+use crate::render::offset_origin;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 use std::io::Write;

@@ -4,19 +4,19 @@
 //! leaves a half-written image under the final name.
 
 pub mod anaglyph;
-pub mod color;
+mod color;
 pub mod exr;
 pub mod image;
-pub mod layout;
-pub mod planes;
-pub mod png;
-pub mod pseudo;
+mod layout;
+mod planes;
+mod png;
+mod pseudo;
 mod read;
 mod table;
 pub mod video;
-pub mod wobble;
+mod wobble;
 
-pub use anaglyph::{Method as AnaglyphMethod, Space as AnaglyphSpace, anaglyph};
+pub use anaglyph::{Method as AnaglyphMethod, Space as AnaglyphSpace, anaglyph as make_anaglyph};
 pub use color::{Display, ToneMap};
 pub use exr::{write_multiview, write_single_view};
 pub use image::Image;

@@ -16,7 +16,8 @@ pub mod trace;
 mod validate;
 
 pub use location::{Key, line_column};
-pub use output_spec::{ExrViews, OutputSpec};
+pub use output_spec::{ExrViews, OutputSpec, PairLayout};
+pub use outputs::StereoFrame;
 pub use run::{FRAME_LOG_COLUMNS, RunOptions, RunSummary, run};
 pub use schema::{
     AccelSection, FramesSection, Pipeline, RenderSection, SceneSection, Selector, StereoSection,

@@ -7,7 +7,7 @@ use super::output_spec::{ExrViews, OutputSpec, PairLayout};
 use super::template::PathTemplate;
 use crate::error::{Error, Result};
 use crate::output::{
-    Display, Image, PseudoStereo, VideoEncoder, anaglyph, interlaced, side_by_side, to_srgb8,
+    Display, Image, PseudoStereo, VideoEncoder, interlaced, make_anaglyph, side_by_side, to_srgb8,
     top_bottom, wobble_schedule, write_gif, write_multiview, write_png, write_rgb8,
     write_single_view,
 };
@@ -126,7 +126,7 @@ impl Writer {
                 Some((
                     l.width,
                     l.height,
-                    anaglyph(l, r, *method, *swap, *space, &display),
+                    make_anaglyph(l, r, *method, *swap, *space, &display),
                 ))
             }
             OutputSpec::SideBySide(PairLayout {

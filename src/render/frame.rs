@@ -6,7 +6,7 @@ use super::camera::EyeCamera;
 use super::integrator::{Integrator, RayCounts};
 use super::sampling::pixel_sample;
 use crate::accel::Intersect;
-use crate::output::image::Image;
+use crate::output::Image;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::cell::Cell;

@@ -2,15 +2,15 @@
 //! Whitted integrator and its shading models, pixel sampling, and the tiled parallel frame loop.
 //! It sees geometry only through `accel::Intersect` and never knows an output file format.
 
-pub mod camera;
-pub mod frame;
-pub mod integrator;
-pub mod sampling;
-pub mod shading;
+mod camera;
+mod frame;
+mod integrator;
+mod sampling;
+mod shading;
 mod view;
 
 pub use camera::{EyeCamera, Rig, RigParams};
 pub use frame::{FilmParams, render_eye, tile_count};
-pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings};
+pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings, offset_origin};
 pub use shading::ShadingModel;
 pub use view::{Eye, View};

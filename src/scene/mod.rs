@@ -3,25 +3,24 @@
 //! output file; [`pose`] turns a scene into world-space geometry for one frame.
 
 pub mod animation;
-pub mod buffers;
-pub mod camera;
+mod buffers;
+mod camera;
 pub mod light;
 pub mod material;
-pub mod mesh;
+mod mesh;
 pub mod motion;
 pub mod pose;
 
 pub use animation::Animation;
-pub use camera::framing_camera;
+pub use camera::{CameraDef, framing_camera};
 pub use light::{Light, LightKind};
+pub use mesh::{Mesh, MorphTarget, Primitive};
 pub use pose::PosedScene;
 
 use crate::error::{Error, Result};
-use camera::CameraDef;
 use glam::{Mat4, Quat, Vec3};
 use light::LightDef;
 use material::{Material, Texture};
-use mesh::Mesh;
 use std::path::{Path, PathBuf};
 
 /// Extensions whose meaning stereotrace renders (or, for the lights, reads).

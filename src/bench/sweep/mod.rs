@@ -10,15 +10,16 @@
 //! Outputs: `results.csv` (one row per combination and frame), `summary.csv` (one row per
 //! combination: the chart's table) and `chart.svg` / `chart.png`.
 
-use super::chart::{self, Chart, Front, Point, Series};
+mod results;
+
+pub use results::{CombinationResult, EyeError, FrameRow, RESULTS_COLUMNS, SUMMARY_COLUMNS, Table};
+
 use super::{median, memory};
-use crate::compare::{Comparison, Planes, Thresholds, compare};
+use crate::compare::{Planes, Thresholds, compare};
 use crate::error::{Error, Result};
-use crate::output::image::Image;
-use crate::output::write_csv;
-use crate::pipeline::LoadedPipeline;
-use crate::pipeline::{FrameStats, FrameTracer, parse_frame_range};
-use std::fmt;
+use crate::output::Image;
+use crate::pipeline::{FrameStats, FrameTracer, LoadedPipeline, parse_frame_range};
+use results::write_files;
 use std::path::PathBuf;
 
 /// Keys set by path, with their values.
@@ -61,98 +62,6 @@ pub struct SweepOptions {
     pub threshold: f32,
 }
 
-/// Accuracy of one eye against the high-quality render.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct EyeError {
-    pub mean_abs: f64,
-    pub psnr: f64,
-    pub percent_over: f64,
-}
-
-impl EyeError {
-    fn from(c: &Comparison) -> EyeError {
-        EyeError {
-            mean_abs: c.mean_error,
-            psnr: c.psnr,
-            percent_over: c.percent_failed(),
-        }
-    }
-}
-
-/// One combination at one frame; times are over the repeats.
-#[derive(Clone, Debug)]
-pub struct FrameRow {
-    pub frame: u32,
-    pub update_s: f64,
-    /// Tracing of every eye.
-    pub trace_s: f64,
-    /// Pose, acceleration update and tracing of every eye: median, fastest and slowest repeat.
-    pub frame_s: f64,
-    pub frame_s_min: f64,
-    pub frame_s_max: f64,
-    pub rays: u64,
-    pub eyes: Vec<(String, EyeError)>,
-}
-
-#[derive(Clone, Debug)]
-pub struct CombinationResult {
-    /// The swept keys and the values of this combination.
-    pub values: Vec<(String, String)>,
-    pub frames: Vec<FrameRow>,
-    /// Peak heap bytes over the combination's repeats (when the counting allocator is in use).
-    pub peak_bytes: Option<usize>,
-}
-
-impl CombinationResult {
-    /// `split=sah update=auto`: the last part of each key with its value.
-    pub fn label(&self) -> String {
-        self.values
-            .iter()
-            .map(|(k, v)| format!("{}={v}", k.rsplit('.').next().unwrap_or(k)))
-            .collect::<Vec<_>>()
-            .join(" ")
-    }
-
-    /// Time per stereo frame, the mean over frames of each frame's median: the builds of the
-    /// first frame are amortized over the range as a render of the range would see them.
-    pub fn frame_seconds(&self) -> f64 {
-        mean(self.frames.iter().map(|f| f.frame_s))
-    }
-
-    pub fn update_seconds(&self) -> f64 {
-        mean(self.frames.iter().map(|f| f.update_s))
-    }
-
-    pub fn mrays_per_second(&self) -> f64 {
-        let rays: u64 = self.frames.iter().map(|f| f.rays).sum();
-        let secs: f64 = self.frames.iter().map(|f| f.trace_s).sum();
-        rays as f64 * 1e-6 / secs.max(1e-12)
-    }
-
-    fn eye_errors(&self) -> impl Iterator<Item = &EyeError> {
-        self.frames
-            .iter()
-            .flat_map(|f| f.eyes.iter().map(|(_, e)| e))
-    }
-
-    pub fn mean_abs_error(&self) -> f64 {
-        mean(self.eye_errors().map(|e| e.mean_abs))
-    }
-
-    pub fn psnr(&self) -> f64 {
-        mean(self.eye_errors().map(|e| e.psnr))
-    }
-
-    pub fn percent_over(&self) -> f64 {
-        mean(self.eye_errors().map(|e| e.percent_over))
-    }
-}
-
-fn mean(values: impl Iterator<Item = f64>) -> f64 {
-    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
-    if n == 0 { f64::NAN } else { sum / n as f64 }
-}
-
 /// Every combination of the swept values, the first key varying slowest.
 pub fn combinations(sweeps: &[(String, Vec<String>)]) -> Vec<Vec<(String, String)>> {
     let mut out = vec![Vec::new()];
@@ -169,33 +78,6 @@ pub fn combinations(sweeps: &[(String, Vec<String>)]) -> Vec<Vec<(String, String
             .collect();
     }
     out
-}
-
-/// The table `bench sweep` prints: one line per combination.
-pub struct Table<'a>(pub &'a [CombinationResult]);
-
-impl fmt::Display for Table<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8}",
-            "combination", "s/frame", "Mrays/s", "peak MB", "mean |err|", "PSNR"
-        )?;
-        for r in self.0 {
-            write!(
-                f,
-                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2}",
-                r.label(),
-                r.frame_seconds(),
-                r.mrays_per_second(),
-                r.peak_bytes
-                    .map_or("-".into(), |b| format!("{:.1}", b as f64 / 1048576.0)),
-                r.mean_abs_error(),
-                r.psnr()
-            )?;
-        }
-        Ok(())
-    }
 }
 
 /// Parses `KEY=V1,V2,...`.
@@ -425,151 +307,6 @@ fn describe(overrides: &[(String, String)]) -> String {
         .map(|(k, v)| format!("{k}={v}"))
         .collect::<Vec<_>>()
         .join(" ")
-}
-
-/// Columns of `results.csv` after the swept keys.
-pub const RESULTS_COLUMNS: [&str; 13] = [
-    "frame",
-    "update_s",
-    "trace_s",
-    "frame_s",
-    "frame_s_min",
-    "frame_s_max",
-    "rays",
-    "mrays_s",
-    "peak_mb",
-    "eye",
-    "mean_abs_error",
-    "psnr",
-    "percent_over",
-];
-
-/// Columns of `summary.csv` after the swept keys.
-pub const SUMMARY_COLUMNS: [&str; 9] = [
-    "label",
-    "frame_s",
-    "update_s",
-    "mrays_s",
-    "peak_mb",
-    "mean_abs_error",
-    "psnr",
-    "percent_over",
-    "pareto",
-];
-
-fn write_files(
-    opts: &SweepOptions,
-    results: &[CombinationResult],
-    ref_spp: u32,
-    ref_depth: u32,
-) -> Result<()> {
-    std::fs::create_dir_all(&opts.out_dir).map_err(|e| Error::io(&opts.out_dir, e))?;
-    let keys: Vec<&str> = opts.sweeps.iter().map(|(k, _)| k.as_str()).collect();
-    let head = |rest: &[&'static str]| -> Vec<&str> {
-        keys.iter().copied().chain(rest.iter().copied()).collect()
-    };
-    let row = |r: &CombinationResult, rest: Vec<String>| -> Vec<String> {
-        r.values
-            .iter()
-            .map(|(_, v)| v.clone())
-            .chain(rest)
-            .collect()
-    };
-    let mb = |r: &CombinationResult| {
-        r.peak_bytes
-            .map(|b| format!("{:.1}", b as f64 / (1 << 20) as f64))
-            .unwrap_or_default()
-    };
-    let mut rows = Vec::new();
-    for r in results {
-        for f in &r.frames {
-            for (eye, e) in &f.eyes {
-                rows.push(row(
-                    r,
-                    vec![
-                        f.frame.to_string(),
-                        format!("{:.6}", f.update_s),
-                        format!("{:.6}", f.trace_s),
-                        format!("{:.6}", f.frame_s),
-                        format!("{:.6}", f.frame_s_min),
-                        format!("{:.6}", f.frame_s_max),
-                        f.rays.to_string(),
-                        format!("{:.3}", f.rays as f64 * 1e-6 / f.trace_s.max(1e-12)),
-                        mb(r),
-                        eye.clone(),
-                        format!("{:.6}", e.mean_abs),
-                        format!("{:.2}", e.psnr),
-                        format!("{:.4}", e.percent_over),
-                    ],
-                ));
-            }
-        }
-    }
-    write_csv(
-        &opts.out_dir.join("results.csv"),
-        &head(&RESULTS_COLUMNS),
-        &rows,
-    )?;
-
-    let points: Vec<Point> = results
-        .iter()
-        .map(|r| Point {
-            label: r.label(),
-            x: r.frame_seconds(),
-            y: r.mean_abs_error(),
-        })
-        .collect();
-    let front = chart::pareto_front(&points);
-    let rows: Vec<Vec<String>> = results
-        .iter()
-        .enumerate()
-        .map(|(i, r)| {
-            row(
-                r,
-                vec![
-                    r.label(),
-                    format!("{:.6}", r.frame_seconds()),
-                    format!("{:.6}", r.update_seconds()),
-                    format!("{:.3}", r.mrays_per_second()),
-                    mb(r),
-                    format!("{:.6}", r.mean_abs_error()),
-                    format!("{:.2}", r.psnr()),
-                    format!("{:.4}", r.percent_over()),
-                    front.contains(&i).to_string(),
-                ],
-            )
-        })
-        .collect();
-    write_csv(
-        &opts.out_dir.join("summary.csv"),
-        &head(&SUMMARY_COLUMNS),
-        &rows,
-    )?;
-
-    // One colour per value of the first swept key; the front runs over all combinations.
-    let series = Series::group(results.iter().zip(points).map(|(r, p)| {
-        let name = r
-            .values
-            .first()
-            .map_or_else(|| "pipeline".to_string(), |(k, v)| format!("{k}={v}"));
-        (name, p)
-    }));
-    let name = opts
-        .pipeline
-        .file_stem()
-        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    chart::write(
-        &Chart {
-            title: format!(
-                "{name}: time per stereo frame against error ({ref_spp} spp, depth {ref_depth} reference)"
-            ),
-            x_label: "time per stereo frame (s)".into(),
-            y_label: "mean absolute error vs reference".into(),
-            series,
-            front: Front::Global,
-        },
-        &opts.out_dir.join("chart"),
-    )
 }
 
 #[cfg(test)]

@@ -1,0 +1,203 @@
+//! The shape DESIGN.md asks of the code, checked on the source itself so that it stays true:
+//! small files, a thin `main.rs`, no module that imports from a module importing it back, and
+//! `pipeline/` reaching the other folders only through their front doors (`mod.rs`).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Every `.rs` file under `src/` by module path (`accel::tree`, `pipeline`, `` for lib.rs).
+fn modules() -> BTreeMap<String, PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    walk(&src, &mut files);
+    files
+        .into_iter()
+        .map(|p| {
+            let rel = p.strip_prefix(&src).unwrap().with_extension("");
+            let mut parts: Vec<String> = rel
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect();
+            if matches!(
+                parts.last().map(String::as_str),
+                Some("mod" | "lib" | "main")
+            ) {
+                parts.pop();
+            }
+            (parts.join("::"), p)
+        })
+        .collect()
+}
+
+/// The code of a file without its `#[cfg(test)]` tail (tests may import anything).
+fn code(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    match text.find("#[cfg(test)]\nmod tests") {
+        Some(i) => text[..i].to_string(),
+        None => text,
+    }
+}
+
+/// `crate::`/`super::` paths a file names, brace groups expanded one level
+/// (`crate::output::{exr, png}` gives `crate::output::exr` and `crate::output::png`).
+fn paths_named(code: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let bytes = code.as_bytes();
+    for start in ["crate::", "super::"] {
+        let mut from = 0;
+        while let Some(i) = code[from..].find(start).map(|i| i + from) {
+            from = i + start.len();
+            if i > 0 && (bytes[i - 1].is_ascii_alphanumeric() || b"_:".contains(&bytes[i - 1])) {
+                continue;
+            }
+            let end = code[i..]
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == ':'))
+                .map_or(code.len(), |e| e + i);
+            let path = code[i..end].trim_end_matches(':').to_string();
+            if code[end..].starts_with('{') {
+                let close = code[end..].find('}').map_or(code.len(), |c| c + end);
+                for name in code[end + 1..close].split([',', ' ', '\n']) {
+                    let name = name.split("::").next().unwrap_or("").trim();
+                    if !name.is_empty() && name != "self" {
+                        out.push(format!("{path}::{name}"));
+                    }
+                }
+            }
+            out.push(path);
+        }
+    }
+    out
+}
+
+/// The longest module prefix of a path, relative to the module that names it.
+fn resolve(from: &str, path: &str, mods: &BTreeMap<String, PathBuf>) -> Option<String> {
+    let mut parts: Vec<&str> = path.split("::").collect();
+    let mut base: Vec<&str> = if from.is_empty() {
+        Vec::new()
+    } else {
+        from.split("::").collect()
+    };
+    if parts[0] == "crate" {
+        base.clear();
+        parts.remove(0);
+    } else {
+        while parts.first() == Some(&"super") {
+            base.pop();
+            parts.remove(0);
+        }
+    }
+    (0..=parts.len()).rev().find_map(|k| {
+        let m = base
+            .iter()
+            .chain(&parts[..k])
+            .copied()
+            .collect::<Vec<_>>()
+            .join("::");
+        mods.contains_key(&m).then_some(m)
+    })
+}
+
+/// For each module, the other modules it imports from (parents and children excluded: a
+/// `mod.rs` declares its children, and a child may use what its parent re-exports).
+fn imports() -> BTreeMap<String, BTreeSet<String>> {
+    let mods = modules();
+    mods.iter()
+        .map(|(m, p)| {
+            let deps = paths_named(&code(p))
+                .iter()
+                .filter_map(|path| resolve(m, path, &mods))
+                .filter(|d| {
+                    let related =
+                        |a: &str, b: &str| b.is_empty() || a.starts_with(&format!("{b}::"));
+                    d != m && !related(m, d) && !related(d, m)
+                })
+                .collect();
+            (m.clone(), deps)
+        })
+        .collect()
+}
+
+#[test]
+fn no_source_file_is_longer_than_600_lines_and_main_stays_thin() {
+    for (m, p) in modules() {
+        let lines = std::fs::read_to_string(&p).unwrap().lines().count();
+        let limit = if p.ends_with("main.rs") { 250 } else { 600 };
+        assert!(
+            lines <= limit,
+            "{m} ({}) has {lines} lines, over {limit}",
+            p.display()
+        );
+    }
+}
+
+#[test]
+fn no_module_imports_from_a_module_that_imports_it_back() {
+    let graph = imports();
+    let reaches = |from: &str, to: &str| {
+        let mut stack = vec![from.to_string()];
+        let mut seen = BTreeSet::new();
+        while let Some(m) = stack.pop() {
+            if m == to {
+                return true;
+            }
+            if seen.insert(m.clone()) {
+                stack.extend(graph.get(&m).into_iter().flatten().cloned());
+            }
+        }
+        false
+    };
+    let mut cycles = Vec::new();
+    for (a, deps) in &graph {
+        for b in deps {
+            if reaches(b, a) {
+                cycles.push(format!("{a} -> {b} -> ... -> {a}"));
+            }
+        }
+    }
+    assert!(cycles.is_empty(), "import cycles: {cycles:#?}");
+}
+
+#[test]
+fn pipeline_reaches_other_folders_only_through_their_front_doors() {
+    let mods = modules();
+    let mut back_doors = Vec::new();
+    for (m, p) in mods.iter().filter(|(m, _)| m.starts_with("pipeline")) {
+        for path in paths_named(&code(p)) {
+            let Some(d) = resolve(m, &path, &mods) else {
+                continue;
+            };
+            let top = d.split("::").next().unwrap_or("");
+            if ["scene", "accel", "render", "output"].contains(&top) && d.contains("::") {
+                back_doors.push(format!("{m} uses {path}"));
+            }
+        }
+    }
+    assert!(back_doors.is_empty(), "{back_doors:#?}");
+}
+
+#[test]
+fn the_checker_sees_imports_through_braces_and_super() {
+    let mods: BTreeMap<String, PathBuf> = ["", "a", "a::b", "c"]
+        .iter()
+        .map(|m| (m.to_string(), PathBuf::new()))
+        .collect();
+    let named = paths_named("use crate::a::{b::X, Y};\nuse super::super::c;\nlet v = acrate::z;");
+    let resolved: BTreeSet<_> = named
+        .iter()
+        .filter_map(|p| resolve("a::b", p, &mods))
+        .collect();
+    assert_eq!(
+        resolved,
+        ["a", "a::b", "c"].iter().map(|s| s.to_string()).collect()
+    );
+}
