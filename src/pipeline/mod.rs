@@ -12,7 +12,7 @@ mod outputs;
 pub mod run;
 mod schema;
 mod template;
-pub mod trace;
+mod trace;
 mod validate;
 
 pub use location::{Key, line_column};
