@@ -50,6 +50,7 @@ pub use aabb::Aabb;
 pub use instances::TwoLevel;
 pub use params::{BuildParams, SplitMethod};
 pub use stats::TreeStats;
+pub use traverse::WalkCounts;
 pub use tree::KdTree;
 pub use update::{Action, LogRow, Reason, UpdateMode, Updater};
 

@@ -7,7 +7,7 @@
 //! compact 8-byte nodes of the static path are untouched: the planes live beside them.
 
 use super::aabb::Aabb;
-use super::traverse::{LeafWalk, any_hit, closest_hit};
+use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit};
 use super::tree::{KdTree, MAX_DEPTH};
 use super::{Hit, Intersect, Ray};
 use glam::Vec3;
@@ -77,20 +77,14 @@ impl RefitTree {
 
     /// Front-to-back walk over overlapping child slabs; `on_leaf` returns the new best distance
     /// and whether to stop.
-    fn walk_slabs(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool),
-    ) {
+    fn walk_slabs(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
         let nodes = &self.topology.nodes;
         if nodes.is_empty() || self.bounds.is_empty() {
             return;
         }
-        let Some((t0, t1)) = self.bounds.clip_ray(ray, t_max) else {
+        let Some((t0, t1)) = self.bounds.clip_ray(&ray.ray, t_max) else {
             return;
         };
-        let mut best = t_max;
         // Both children can be pushed at every level: twice the depth bounds the stack.
         let mut stack = [(0u32, 0f32, 0f32); 2 * MAX_DEPTH as usize + 4];
         stack[0] = (0, t0, t1);
@@ -98,28 +92,27 @@ impl RefitTree {
         while sp > 0 {
             sp -= 1;
             let (i, lo, hi) = stack[sp];
-            if lo > best {
+            if lo > visit.limit() {
                 continue;
             }
             let n = nodes[i as usize];
             if n.is_leaf() {
-                let (b, stop) = on_leaf(&self.topology.prim_refs[n.leaf_range()], best);
-                best = b;
-                if stop {
+                if visit.leaf(&self.topology.prim_refs[n.leaf_range()]) {
                     return;
                 }
                 continue;
             }
+            visit.inner();
             let axis = n.axis();
             let [below_max, above_min] = self.planes[i as usize];
-            let (o, d) = (ray.origin[axis], ray.dir[axis]);
+            let (o, d, inv_d) = (ray.origin[axis], ray.dir[axis], ray.inv_dir[axis]);
             // Interval of t where the ray is inside a half-space x <= v (or x >= v).
             let slab = |v: f32, below: bool| -> Option<(f32, f32)> {
                 if d == 0.0 {
                     let inside = if below { o <= v } else { o >= v };
                     return inside.then_some((lo, hi));
                 }
-                let t = (v - o) / d;
+                let t = (v - o) * inv_d;
                 let (a, b) = if below == (d > 0.0) {
                     (lo, hi.min(t))
                 } else {
@@ -165,18 +158,18 @@ impl LeafWalk for RefitTree {
         &self.triangles
     }
 
-    fn walk(&self, ray: &Ray, t_max: f32, on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
-        self.walk_slabs(ray, t_max, on_leaf)
+    fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
+        self.walk_slabs(ray, t_max, visit)
     }
 }
 
 impl Intersect for RefitTree {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        closest_hit(self, ray, t_max)
+        closest_hit(self, ray, t_max, &mut NoTally)
     }
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
-        any_hit(self, ray, t_max)
+        any_hit(self, ray, t_max, &mut NoTally)
     }
 }
 

@@ -7,49 +7,121 @@ use super::tree::{KdTree, MAX_DEPTH};
 use super::triangle::{RayPre, intersect};
 use super::{Hit, Intersect, Ray};
 use glam::Vec3;
+use std::mem::MaybeUninit;
 
 const STACK: usize = MAX_DEPTH as usize + 4;
 
-impl LeafWalk for KdTree {
-    fn triangles(&self) -> &[[Vec3; 3]] {
-        &self.triangles
-    }
+/// What a walk did, for explaining speed (`bench accel`); the renderer counts nothing.
+pub trait Tally {
+    fn inner(&mut self) {}
+    fn leaf(&mut self) {}
+    fn test(&mut self) {}
+}
 
+/// The renderer's tally: every count compiles away.
+pub struct NoTally;
+
+impl Tally for NoTally {}
+
+/// Inner nodes visited, leaves visited and ray-triangle tests run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WalkCounts {
+    pub inner: u64,
+    pub leaves: u64,
+    pub tests: u64,
+}
+
+impl WalkCounts {
+    pub fn add(&mut self, o: &WalkCounts) {
+        self.inner += o.inner;
+        self.leaves += o.leaves;
+        self.tests += o.tests;
+    }
+}
+
+impl Tally for WalkCounts {
+    fn inner(&mut self) {
+        self.inner += 1;
+    }
+    fn leaf(&mut self) {
+        self.leaves += 1;
+    }
+    fn test(&mut self) {
+        self.tests += 1;
+    }
+}
+
+/// A ray prepared for walking: the components as arrays, so that the walk indexes them by axis
+/// without glam's per-index `match`, and the reciprocal direction, so that each inner node costs
+/// a multiplication where a division stalled the walk (the profile's hottest instruction was the
+/// comparison waiting on that division).
+pub(super) struct WalkRay {
+    pub ray: Ray,
+    pub origin: [f32; 4],
+    pub dir: [f32; 4],
+    /// `1 / dir` per axis (infinite on a zero component, which the walks test before using it).
+    pub inv_dir: [f32; 4],
+}
+
+impl WalkRay {
+    pub fn new(ray: &Ray) -> WalkRay {
+        let dir = ray.dir.extend(0.0).to_array();
+        WalkRay {
+            ray: *ray,
+            origin: ray.origin.extend(0.0).to_array(),
+            dir,
+            inv_dir: dir.map(|d| 1.0 / d),
+        }
+    }
+}
+
+/// What a walk does at the leaves it reaches, front to back.
+pub(super) trait Visit {
+    /// Nothing past this distance matters any more (for closest hit, the best hit so far).
+    fn limit(&self) -> f32;
+    /// Tests a leaf's references; `true` ends the walk.
+    fn leaf(&mut self, prims: &[u32]) -> bool;
+    /// An inner node was visited.
+    fn inner(&mut self);
+}
+
+impl KdTree {
     #[inline]
-    fn walk(&self, ray: &Ray, t_max: f32, mut on_leaf: impl FnMut(&[u32], f32) -> (f32, bool)) {
+    fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
         if self.nodes.is_empty() || self.bounds.is_empty() {
             return;
         }
-        let Some((mut t_min, mut t_far)) = self.bounds.clip_ray(ray, t_max) else {
+        let Some((mut t_min, mut t_far)) = self.bounds.clip_ray(&ray.ray, t_max) else {
             return;
         };
-        let mut best = t_max;
-        let mut stack = [(0u32, 0f32, 0f32); STACK];
+        // Uninitialised: a ray that never pushes pays nothing for the stack.
+        let mut stack = [const { MaybeUninit::<(u32, f32, f32)>::uninit() }; STACK];
         let mut sp = 0;
         let mut node = 0usize;
         loop {
-            if best < t_min {
+            if visit.limit() < t_min {
                 break;
             }
             let n = self.nodes[node];
             if n.is_leaf() {
-                let (b, stop) = on_leaf(&self.prim_refs[n.leaf_range()], best);
-                best = b;
-                if stop || sp == 0 {
+                if visit.leaf(&self.prim_refs[n.leaf_range()]) || sp == 0 {
                     break;
                 }
                 sp -= 1;
-                let (next, a, b) = stack[sp];
+                // SAFETY: every entry below `sp` was written by a push below.
+                let (next, a, b) = unsafe { stack[sp].assume_init() };
                 node = next as usize;
                 t_min = a;
                 t_far = b;
                 continue;
             }
+            visit.inner();
             let axis = n.axis();
             let split = n.split();
-            let (o, d) = (ray.origin[axis], ray.dir[axis]);
+            let (o, d, inv_d) = (ray.origin[axis], ray.dir[axis], ray.inv_dir[axis]);
             let below = node + 1;
             let above = node + n.above_offset();
+            prefetch(&self.nodes[above]);
             let below_first = o < split || (o == split && d <= 0.0);
             let (first, second) = if below_first {
                 (below, above)
@@ -59,34 +131,68 @@ impl LeafWalk for KdTree {
             if d == 0.0 {
                 if o == split {
                     // The ray lies in the split plane: triangles in it may sit on either side.
-                    stack[sp] = (second as u32, t_min, t_far);
+                    stack[sp].write((second as u32, t_min, t_far));
                     sp += 1;
                 }
                 node = first;
                 continue;
             }
-            let t_plane = (split - o) / d;
+            let t_plane = (split - o) * inv_d;
             if t_plane > t_far || t_plane <= 0.0 {
                 node = first;
             } else if t_plane < t_min {
                 node = second;
             } else {
-                stack[sp] = (second as u32, t_plane, t_far);
+                stack[sp].write((second as u32, t_plane, t_far));
                 sp += 1;
                 node = first;
                 t_far = t_plane;
             }
         }
     }
+
+    /// `closest_hit` with its work counted.
+    pub fn closest_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> Option<Hit> {
+        closest_hit(self, ray, t_max, c)
+    }
+
+    /// `any_hit` with its work counted.
+    pub fn any_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> bool {
+        any_hit(self, ray, t_max, c)
+    }
+}
+
+/// Asks the cache for a node the walk may visit next. The below child sits next to its parent;
+/// the above child is a subtree away and, on a tree larger than the cache, a miss the walk would
+/// otherwise wait for when it goes there (about half the time).
+#[inline(always)]
+fn prefetch<T>(p: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint: it reads nothing into the program and cannot fault.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+            (p as *const T).cast(),
+        );
+    }
+}
+
+impl LeafWalk for KdTree {
+    fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+
+    fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
+        KdTree::walk(self, ray, t_max, visit)
+    }
 }
 
 impl Intersect for KdTree {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        closest_hit(self, ray, t_max)
+        closest_hit(self, ray, t_max, &mut NoTally)
     }
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
-        any_hit(self, ray, t_max)
+        any_hit(self, ray, t_max, &mut NoTally)
     }
 }
 
@@ -94,40 +200,136 @@ impl Intersect for KdTree {
 /// kd-tree and the refitted one differ only in how they walk, not in what a leaf does.
 pub(super) trait LeafWalk {
     fn triangles(&self) -> &[[Vec3; 3]];
-    /// Visits leaves front to back; `on_leaf` tests a leaf against the current best distance
-    /// and returns the new best and whether to stop.
-    fn walk(&self, ray: &Ray, t_max: f32, on_leaf: impl FnMut(&[u32], f32) -> (f32, bool));
+    fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit);
 }
 
-/// Closest hit over a walk: every leaf's triangles against the best distance so far.
-pub(super) fn closest_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32) -> Option<Hit> {
-    let pre = RayPre::new(ray);
-    let triangles = tree.triangles();
-    let mut hit = None;
-    tree.walk(ray, t_max, |prims, mut best| {
+/// The last triangles a ray tested, hashed by index (Mitsuba's kd-tree keeps the same per-ray
+/// mailbox, 8 slots). With perfect splits a triangle is referenced by every leaf its clipped
+/// pieces reach (4-5 leaves on large meshes), and a ray crossing several of them would test it
+/// again in each. Skipping a retest is exact: a triangle that missed within the current limit
+/// misses within any later, smaller limit, and one that hit set the best hit already.
+struct Mailbox([u32; 8]);
+
+impl Mailbox {
+    fn new() -> Mailbox {
+        Mailbox([u32::MAX; 8])
+    }
+
+    /// Whether `prim` was tested already; records it otherwise.
+    #[inline]
+    fn seen(&mut self, prim: u32) -> bool {
+        let slot = &mut self.0[prim as usize & 7];
+        let seen = *slot == prim;
+        *slot = prim;
+        seen
+    }
+}
+
+/// Closest hit: every leaf's triangles against the best distance so far.
+struct Closest<'a, T: Tally> {
+    mailbox: Mailbox,
+    pre: RayPre,
+    triangles: &'a [[Vec3; 3]],
+    best: f32,
+    hit: Option<Hit>,
+    tally: &'a mut T,
+}
+
+impl<T: Tally> Visit for Closest<'_, T> {
+    #[inline]
+    fn limit(&self) -> f32 {
+        self.best
+    }
+
+    #[inline]
+    fn leaf(&mut self, prims: &[u32]) -> bool {
+        self.tally.leaf();
         for &p in prims {
-            if let Some((t, b1, b2)) = intersect(&pre, &triangles[p as usize], best) {
-                best = t;
-                hit = Some(Hit { t, prim: p, b1, b2 });
+            if self.mailbox.seen(p) {
+                continue;
+            }
+            self.tally.test();
+            if let Some((t, b1, b2)) = intersect(&self.pre, &self.triangles[p as usize], self.best) {
+                self.best = t;
+                self.hit = Some(Hit { t, prim: p, b1, b2 });
             }
         }
-        (best, false)
-    });
-    hit
+        false
+    }
+
+    #[inline]
+    fn inner(&mut self) {
+        self.tally.inner();
+    }
 }
 
-/// Any hit over a walk: stops at the first leaf with a hit.
-pub(super) fn any_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32) -> bool {
-    let pre = RayPre::new(ray);
-    let triangles = tree.triangles();
-    let mut found = false;
-    tree.walk(ray, t_max, |prims, best| {
-        found = prims
-            .iter()
-            .any(|&p| intersect(&pre, &triangles[p as usize], best).is_some());
-        (best, found)
-    });
-    found
+/// Any hit: the walk ends at the first triangle hit before `t_max`.
+struct Occluded<'a, T: Tally> {
+    mailbox: Mailbox,
+    pre: RayPre,
+    triangles: &'a [[Vec3; 3]],
+    t_max: f32,
+    found: bool,
+    tally: &'a mut T,
+}
+
+impl<T: Tally> Visit for Occluded<'_, T> {
+    #[inline]
+    fn limit(&self) -> f32 {
+        self.t_max
+    }
+
+    #[inline]
+    fn leaf(&mut self, prims: &[u32]) -> bool {
+        self.tally.leaf();
+        for &p in prims {
+            if self.mailbox.seen(p) {
+                continue;
+            }
+            self.tally.test();
+            if intersect(&self.pre, &self.triangles[p as usize], self.t_max).is_some() {
+                self.found = true;
+                return true;
+            }
+        }
+        false
+    }
+
+    #[inline]
+    fn inner(&mut self) {
+        self.tally.inner();
+    }
+}
+
+pub(super) fn closest_hit(
+    tree: &impl LeafWalk,
+    ray: &Ray,
+    t_max: f32,
+    tally: &mut impl Tally,
+) -> Option<Hit> {
+    let mut v = Closest {
+        mailbox: Mailbox::new(),
+        pre: RayPre::new(ray),
+        triangles: tree.triangles(),
+        best: t_max,
+        hit: None,
+        tally,
+    };
+    tree.walk(&WalkRay::new(ray), t_max, &mut v);
+    v.hit
+}
+
+pub(super) fn any_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32, tally: &mut impl Tally) -> bool {
+    let mut v = Occluded {
+        mailbox: Mailbox::new(),
+        pre: RayPre::new(ray),
+        triangles: tree.triangles(),
+        t_max,
+        found: false,
+        tally,
+    };
+    tree.walk(&WalkRay::new(ray), t_max, &mut v);
+    v.found
 }
 
 #[cfg(test)]

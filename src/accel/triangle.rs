@@ -7,15 +7,15 @@
 use super::Ray;
 use glam::Vec3;
 
-/// Per-ray constants of the shear transform.
+/// Per-ray constants of the shear transform. The shear is stored as three row vectors so that a
+/// vertex's sheared coordinates are dot products: `x = v[kx] - sx v[kz]` is `dot(v, row_x)` with
+/// `row_x` holding 1 at `kx` and `-sx` at `kz`. Adding the exact zeros of the other terms changes
+/// no bit of the result, and no component is picked by a runtime index.
 pub struct RayPre {
     pub origin: Vec3,
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    row_x: Vec3,
+    row_y: Vec3,
+    row_z: Vec3,
 }
 
 impl RayPre {
@@ -35,14 +35,20 @@ impl RayPre {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let mut row_x = Vec3::ZERO;
+        let mut row_y = Vec3::ZERO;
+        let mut row_z = Vec3::ZERO;
+        row_x[kx] = 1.0;
+        row_x[kz] = -sx;
+        row_y[ky] = 1.0;
+        row_y[kz] = -sy;
+        row_z[kz] = sz;
         RayPre {
             origin: ray.origin,
-            kx,
-            ky,
-            kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
+            row_x,
+            row_y,
+            row_z,
         }
     }
 }
@@ -53,13 +59,9 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
     let a = tri[0] - pre.origin;
     let b = tri[1] - pre.origin;
     let c = tri[2] - pre.origin;
-    let (kx, ky, kz) = (pre.kx, pre.ky, pre.kz);
-    let ax = a[kx] - pre.sx * a[kz];
-    let ay = a[ky] - pre.sy * a[kz];
-    let bx = b[kx] - pre.sx * b[kz];
-    let by = b[ky] - pre.sy * b[kz];
-    let cx = c[kx] - pre.sx * c[kz];
-    let cy = c[ky] - pre.sy * c[kz];
+    let (ax, ay) = (a.dot(pre.row_x), a.dot(pre.row_y));
+    let (bx, by) = (b.dot(pre.row_x), b.dot(pre.row_y));
+    let (cx, cy) = (c.dot(pre.row_x), c.dot(pre.row_y));
     let mut u = cx * by - cy * bx;
     let mut v = ax * cy - ay * cx;
     let mut w = bx * ay - by * ax;
@@ -75,10 +77,22 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
     if det == 0.0 {
         return None;
     }
-    let az = pre.sz * a[kz];
-    let bz = pre.sz * b[kz];
-    let cz = pre.sz * c[kz];
+    let (az, bz, cz) = (a.dot(pre.row_z), b.dot(pre.row_z), c.dot(pre.row_z));
     let t_scaled = u * az + v * bz + w * cz;
+    // Most candidates that pass the edge tests lie behind the origin (a shadow ray's own
+    // triangle) or beyond the best hit: reject those before the division. `t_scaled` with the
+    // sign of `det` is positive exactly when `t` is. The far test keeps a margin of 8 ulps over
+    // the rounding of the division below and is skipped when `t_max * |det|` is subnormal (its
+    // relative error unbounded there), so it only rejects what the exact test rejects too.
+    let sign = det.to_bits() & 0x8000_0000;
+    let t_signed = f32::from_bits(t_scaled.to_bits() ^ sign);
+    let far = t_max * det.abs();
+    // NaN fails `> 0` as it fails the exact test below.
+    let ahead = t_signed > 0.0;
+    if !ahead || (far >= f32::MIN_POSITIVE && t_signed > far * (1.0 + 8.0 * f32::EPSILON))
+    {
+        return None;
+    }
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
     if !(t > 0.0 && t < t_max) {

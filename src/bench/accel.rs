@@ -6,7 +6,7 @@ pub use super::accel_table::{AccelRow, chart, csv_header, read_table};
 use super::accel_table::write_table;
 use super::median;
 use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
-use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, SplitMethod};
+use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, SplitMethod, WalkCounts};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::scene::framing_camera;
@@ -54,6 +54,10 @@ pub struct AccelBenchOptions {
     /// Runs per measurement; the median is reported.
     #[arg(long, default_value_t = 3)]
     pub repeat: usize,
+    /// Times each ray set this many times per build (the median over all runs is reported):
+    /// tracing takes a fraction of a second, so on a shared machine more samples steady it.
+    #[arg(long, default_value_t = 1)]
+    pub trace_repeat: usize,
     /// Write the table as CSV.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -140,26 +144,61 @@ fn load(spec: &str) -> Result<(String, Vec<[Vec3; 3]>, Mat4, f32)> {
     Ok((name, tris, world, yfov))
 }
 
-/// Seconds to trace all rays (closest hit or any hit), in parallel chunks.
-fn time_rays(accel: &dyn Intersect, rays: &[TimedRay], any: bool) -> f64 {
+/// What tracing a set of rays found: rays that hit (or were occluded) and the sum of the hit
+/// distances (closest hit only).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Found {
+    hits: u64,
+    sum_t: f64,
+}
+
+/// Traces all rays (closest hit or any hit) in parallel chunks; seconds and what was found. The
+/// sums are added chunk by chunk in order, so they do not depend on the thread count.
+fn time_rays(accel: &dyn Intersect, rays: &[TimedRay], any: bool) -> (f64, Found) {
     let t = Instant::now();
-    let hits: usize = rays
+    let chunks: Vec<Found> = rays
         .par_chunks(256)
         .map(|chunk| {
-            chunk
-                .iter()
-                .filter(|(r, tm)| {
-                    if any {
-                        accel.any_hit(r, *tm)
-                    } else {
-                        accel.closest_hit(r, *tm).is_some()
-                    }
-                })
-                .count()
+            let mut f = Found::default();
+            for (r, tm) in chunk {
+                if any {
+                    f.hits += accel.any_hit(r, *tm) as u64;
+                } else if let Some(h) = accel.closest_hit(r, *tm) {
+                    f.hits += 1;
+                    f.sum_t += h.t as f64;
+                }
+            }
+            f
         })
-        .sum();
-    std::hint::black_box(hits);
-    t.elapsed().as_secs_f64()
+        .collect();
+    let secs = t.elapsed().as_secs_f64();
+    let found = chunks.iter().fold(Found::default(), |a, c| Found {
+        hits: a.hits + c.hits,
+        sum_t: a.sum_t + c.sum_t,
+    });
+    (secs, found)
+}
+
+/// Per ray: inner nodes, leaves and triangle tests of a kd-tree walk (an untimed pass).
+fn walk_work(tree: &KdTree, rays: &[TimedRay], any: bool) -> [f64; 3] {
+    let chunks: Vec<WalkCounts> = rays
+        .par_chunks(256)
+        .map(|chunk| {
+            let mut c = WalkCounts::default();
+            for (r, tm) in chunk {
+                if any {
+                    tree.any_hit_counted(r, *tm, &mut c);
+                } else {
+                    tree.closest_hit_counted(r, *tm, &mut c);
+                }
+            }
+            c
+        })
+        .collect();
+    let mut total = WalkCounts::default();
+    chunks.iter().for_each(|c| total.add(c));
+    let n = rays.len().max(1) as f64;
+    [total.inner, total.leaves, total.tests].map(|v| v as f64 / n)
 }
 
 /// Runs the accel benchmark; one row per (scene, method).
@@ -203,6 +242,7 @@ pub fn bench_accel(
                 ..Default::default()
             };
             let (mut builds, mut prim_t, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
+            let (mut primary_found, mut shadow_found) = (Found::default(), Found::default());
             for _ in 0..repeat {
                 let t = Instant::now();
                 let accel: Box<dyn Intersect> = match method {
@@ -216,6 +256,10 @@ pub fn bench_accel(
                         row.refs_per_triangle = Some(st.references_per_triangle);
                         row.bytes = Some(st.bytes);
                         builds.push(tree.build_seconds);
+                        if row.primary_work.is_none() {
+                            row.primary_work = Some(walk_work(&tree, &primary, false));
+                            row.shadow_work = Some(walk_work(&tree, &shadow, true));
+                        }
                         Box::new(tree)
                     }
                     AccelMethod::BruteForce => {
@@ -232,13 +276,22 @@ pub fn bench_accel(
                         Box::new(b)
                     }
                 };
-                prim_t.push(time_rays(accel.as_ref(), &primary, false));
-                shadow_t.push(time_rays(accel.as_ref(), &shadow, true));
+                for _ in 0..opts.trace_repeat.max(1) {
+                    let (secs, hits) = time_rays(accel.as_ref(), &primary, false);
+                    prim_t.push(secs);
+                    primary_found = hits;
+                    let (secs, occluded) = time_rays(accel.as_ref(), &shadow, true);
+                    shadow_t.push(secs);
+                    shadow_found = occluded;
+                }
             }
             row.build_s = median(&builds);
             row.build_ns_per_triangle = row.build_s * 1e9 / tris.len().max(1) as f64;
             row.primary_mrays_s = mrays(&primary, median(&prim_t));
             row.shadow_mrays_s = mrays(&shadow, median(&shadow_t));
+            row.primary_hits = Some(primary_found.hits);
+            row.mean_t = Some(primary_found.sum_t / primary_found.hits.max(1) as f64);
+            row.shadow_occluded = Some(shadow_found.hits);
             progress(&row);
             rows.push(row);
         }

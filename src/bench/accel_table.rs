@@ -22,10 +22,19 @@ pub struct AccelRow {
     pub max_depth: Option<usize>,
     pub refs_per_triangle: Option<f64>,
     pub bytes: Option<usize>,
+    /// Primary rays that hit, and their mean hit distance: "the same hits" as a peer, checked.
+    pub primary_hits: Option<u64>,
+    pub mean_t: Option<f64>,
+    /// Shadow rays that found an occluder.
+    pub shadow_occluded: Option<u64>,
+    /// Per primary ray: inner nodes visited, leaves visited, triangle tests (kd-trees only).
+    pub primary_work: Option<[f64; 3]>,
+    /// The same per shadow ray.
+    pub shadow_work: Option<[f64; 3]>,
 }
 
-/// The table's columns.
-pub const COLUMNS: [&str; 14] = [
+/// The table's columns. Tables written before the last nine existed still read back.
+pub const COLUMNS: [&str; 23] = [
     "scene",
     "method",
     "triangles",
@@ -40,13 +49,25 @@ pub const COLUMNS: [&str; 14] = [
     "max_depth",
     "refs_per_triangle",
     "bytes",
+    "primary_hits",
+    "mean_t",
+    "shadow_occluded",
+    "primary_inner_per_ray",
+    "primary_leaves_per_ray",
+    "primary_tests_per_ray",
+    "shadow_inner_per_ray",
+    "shadow_leaves_per_ray",
+    "shadow_tests_per_ray",
 ];
+
+/// Columns every table has had.
+const REQUIRED: usize = 14;
 
 impl AccelRow {
     /// The row's fields in `COLUMNS` order, as written to the table.
     pub fn fields(&self) -> Vec<String> {
         let opt = |v: Option<String>| v.unwrap_or_default();
-        vec![
+        let mut f = vec![
             self.scene.clone(),
             self.method.clone(),
             self.triangles.to_string(),
@@ -61,7 +82,16 @@ impl AccelRow {
             opt(self.max_depth.map(|v| v.to_string())),
             opt(self.refs_per_triangle.map(|v| format!("{v:.3}"))),
             opt(self.bytes.map(|v| v.to_string())),
-        ]
+            opt(self.primary_hits.map(|v| v.to_string())),
+            opt(self.mean_t.map(|v| format!("{v:.6}"))),
+            opt(self.shadow_occluded.map(|v| v.to_string())),
+        ];
+        for work in [self.primary_work, self.shadow_work] {
+            for k in 0..3 {
+                f.push(opt(work.map(|w| format!("{:.2}", w[k]))));
+            }
+        }
+        f
     }
 
     /// The row as one CSV line (the benchmark prints rows as they are measured).
@@ -109,12 +139,18 @@ pub fn write_table(path: &Path, rows: &[AccelRow]) -> Result<()> {
 
 /// Reads a table written by `bench accel --csv` (or its standard output) back.
 pub fn read_table(path: &Path) -> Result<Vec<AccelRow>> {
-    read_csv(path, &COLUMNS, "bench accel table")?
-        .into_iter()
+    let (header, rows) = read_csv(path, "bench accel table")?;
+    if header.len() < REQUIRED || header.iter().zip(COLUMNS).any(|(h, c)| h != c) {
+        return Err(Error::input(
+            path,
+            "not a bench accel table: the header differs",
+        ));
+    }
+    rows.into_iter()
         .enumerate()
         .map(|(i, f)| {
             let bad = |what: &str| Error::input(path, format!("line {}: {what}", i + 2));
-            if f.len() != COLUMNS.len() {
+            if f.len() != header.len() {
                 return Err(bad("wrong number of fields"));
             }
             let num = |k: usize| {
@@ -122,10 +158,11 @@ pub fn read_table(path: &Path) -> Result<Vec<AccelRow>> {
                     .map_err(|_| bad(&format!("'{}' is not a number", f[k])))
             };
             let opt = |k: usize| {
-                (!f[k].is_empty())
-                    .then(|| f[k].parse::<f64>().ok())
-                    .flatten()
+                f.get(k)
+                    .filter(|v| !v.is_empty())
+                    .and_then(|v| v.parse::<f64>().ok())
             };
+            let work = |k: usize| Some([opt(k)?, opt(k + 1)?, opt(k + 2)?]);
             Ok(AccelRow {
                 scene: f[0].to_string(),
                 method: f[1].to_string(),
@@ -141,10 +178,16 @@ pub fn read_table(path: &Path) -> Result<Vec<AccelRow>> {
                 max_depth: opt(11).map(|v| v as usize),
                 refs_per_triangle: opt(12),
                 bytes: opt(13).map(|v| v as usize),
+                primary_hits: opt(14).map(|v| v as u64),
+                mean_t: opt(15),
+                shadow_occluded: opt(16).map(|v| v as u64),
+                primary_work: work(17),
+                shadow_work: work(20),
             })
         })
         .collect()
 }
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -167,6 +210,11 @@ mod tests {
                 max_depth: Some(21),
                 refs_per_triangle: Some(5.026),
                 bytes: Some(109628),
+                primary_hits: Some(91234),
+                mean_t: Some(3.874808),
+                shadow_occluded: Some(20600),
+                primary_work: Some([41.5, 6.25, 18.0]),
+                shadow_work: Some([30.0, 5.5, 21.75]),
             },
             AccelRow {
                 scene: "bunny".into(),
@@ -188,6 +236,11 @@ mod tests {
         for (a, b) in rows.iter().zip(&back) {
             assert_eq!(a.csv(), b.csv());
         }
+        // A table from before the walk columns existed reads back with them empty.
+        let old = "scene,method,triangles,threads,build_s,build_ns_per_triangle,primary_mrays_s,shadow_mrays_s,sah_cost,nodes,leaves,max_depth,refs_per_triangle,bytes\nb,sah,9,2,0.1,1.0,2.0,3.0,4.0,5,6,7,8.0,9\n";
+        std::fs::write(&path, old).unwrap();
+        let back = read_table(&path).unwrap();
+        assert_eq!((back[0].nodes, back[0].primary_work), (Some(5), None));
         std::fs::write(&path, "scene,method\nx,y\n").unwrap();
         assert!(
             read_table(&path)
