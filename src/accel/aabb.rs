@@ -80,17 +80,30 @@ impl Aabb {
     /// when it misses. Zero direction components are tested explicitly rather than through
     /// inf/NaN arithmetic.
     pub fn clip_ray(&self, ray: &Ray, t_max: f32) -> Option<(f32, f32)> {
+        let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
+        self.clip(o, d, d.map(|d| 1.0 / d), t_max)
+    }
+
+    /// `clip_ray` with the ray's reciprocal direction already computed (a walk has it).
+    #[inline]
+    pub fn clip(
+        &self,
+        origin: [f32; 3],
+        dir: [f32; 3],
+        inv_dir: [f32; 3],
+        t_max: f32,
+    ) -> Option<(f32, f32)> {
         let (mut t0, mut t1) = (0.0f32, t_max);
+        let (min, max) = (self.min.to_array(), self.max.to_array());
         for axis in 0..3 {
-            let (o, d) = (ray.origin[axis], ray.dir[axis]);
-            let (lo, hi) = (self.min[axis], self.max[axis]);
+            let (o, d, inv) = (origin[axis], dir[axis], inv_dir[axis]);
+            let (lo, hi) = (min[axis], max[axis]);
             if d == 0.0 {
                 if o < lo || o > hi {
                     return None;
                 }
                 continue;
             }
-            let inv = 1.0 / d;
             let (mut near, mut far) = ((lo - o) * inv, (hi - o) * inv);
             if near > far {
                 std::mem::swap(&mut near, &mut far);

@@ -97,8 +97,10 @@ impl Intersect for TwoLevel {
         let mut best: Option<Hit> = None;
         for part in &self.parts {
             let limit = best.map_or(t_max, |h| h.t);
-            // The box test is conservative: instance boxes enclose the transformed object box.
-            if part.bounds.is_empty() || part.bounds.clip_ray(ray, limit).is_none() {
+            // Instances are tested against their world box before the ray is transformed (the box
+            // is conservative: it encloses the transformed object box); a world-space tree clips
+            // the ray to the same box itself, so it is not tested twice.
+            if part.world_to_object.is_some() && part.bounds.clip_ray(ray, limit).is_none() {
                 continue;
             }
             if let Some(h) = part.accel.closest_hit(&part.local_ray(ray), limit) {
@@ -113,8 +115,7 @@ impl Intersect for TwoLevel {
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
         self.parts.iter().any(|p| {
-            !p.bounds.is_empty()
-                && p.bounds.clip_ray(ray, t_max).is_some()
+            (p.world_to_object.is_none() || p.bounds.clip_ray(ray, t_max).is_some())
                 && p.accel.any_hit(&p.local_ray(ray), t_max)
         })
     }

@@ -82,7 +82,7 @@ impl RefitTree {
         if nodes.is_empty() || self.bounds.is_empty() {
             return;
         }
-        let Some((t0, t1)) = self.bounds.clip_ray(&ray.ray, t_max) else {
+        let Some((t0, t1)) = ray.clip(&self.bounds, t_max) else {
             return;
         };
         // Both children can be pushed at every level: twice the depth bounds the stack.

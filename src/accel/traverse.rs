@@ -56,7 +56,6 @@ impl Tally for WalkCounts {
 /// a multiplication where a division stalled the walk (the profile's hottest instruction was the
 /// comparison waiting on that division).
 pub(super) struct WalkRay {
-    pub ray: Ray,
     pub origin: [f32; 4],
     pub dir: [f32; 4],
     /// `1 / dir` per axis (infinite on a zero component, which the walks test before using it).
@@ -64,10 +63,21 @@ pub(super) struct WalkRay {
 }
 
 impl WalkRay {
+    /// The ray's parametric interval inside a box (`Aabb::clip_ray` without its divisions).
+    #[inline]
+    pub fn clip(&self, b: &super::Aabb, t_max: f32) -> Option<(f32, f32)> {
+        let three = |v: [f32; 4]| [v[0], v[1], v[2]];
+        b.clip(
+            three(self.origin),
+            three(self.dir),
+            three(self.inv_dir),
+            t_max,
+        )
+    }
+
     pub fn new(ray: &Ray) -> WalkRay {
         let dir = ray.dir.extend(0.0).to_array();
         WalkRay {
-            ray: *ray,
             origin: ray.origin.extend(0.0).to_array(),
             dir,
             inv_dir: dir.map(|d| 1.0 / d),
@@ -91,7 +101,7 @@ impl KdTree {
         if self.nodes.is_empty() || self.bounds.is_empty() {
             return;
         }
-        let Some((mut t_min, mut t_far)) = self.bounds.clip_ray(&ray.ray, t_max) else {
+        let Some((mut t_min, mut t_far)) = ray.clip(&self.bounds, t_max) else {
             return;
         };
         // Uninitialised: a ray that never pushes pays nothing for the stack.
@@ -249,7 +259,8 @@ impl<T: Tally> Visit for Closest<'_, T> {
                 continue;
             }
             self.tally.test();
-            if let Some((t, b1, b2)) = intersect(&self.pre, &self.triangles[p as usize], self.best) {
+            if let Some((t, b1, b2)) = intersect(&self.pre, &self.triangles[p as usize], self.best)
+            {
                 self.best = t;
                 self.hit = Some(Hit { t, prim: p, b1, b2 });
             }

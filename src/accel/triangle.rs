@@ -5,17 +5,16 @@
 //! functions that come out exactly zero are recomputed in f64, as the paper prescribes.
 
 use super::Ray;
-use glam::Vec3;
+use glam::{Mat3A, Vec3, Vec3A};
 
-/// Per-ray constants of the shear transform. The shear is stored as three row vectors so that a
-/// vertex's sheared coordinates are dot products: `x = v[kx] - sx v[kz]` is `dot(v, row_x)` with
-/// `row_x` holding 1 at `kx` and `-sx` at `kz`. Adding the exact zeros of the other terms changes
-/// no bit of the result, and no component is picked by a runtime index.
+/// Per-ray constants of the shear transform, stored as a 3x3 matrix so that a vertex's sheared
+/// coordinates are one SIMD matrix-vector product: `x = v[kx] - sx v[kz]` is row x of the matrix
+/// (1 at `kx`, `-sx` at `kz`) times `v`. Each lane sums its three products in the order a dot
+/// product would, and the exact zeros of the other terms change no bit of the result; no
+/// component is picked by a runtime index.
 pub struct RayPre {
-    pub origin: Vec3,
-    row_x: Vec3,
-    row_y: Vec3,
-    row_z: Vec3,
+    origin: Vec3A,
+    shear: Mat3A,
 }
 
 impl RayPre {
@@ -36,19 +35,17 @@ impl RayPre {
             std::mem::swap(&mut kx, &mut ky);
         }
         let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let mut row_x = Vec3::ZERO;
-        let mut row_y = Vec3::ZERO;
-        let mut row_z = Vec3::ZERO;
+        let mut row_x = Vec3A::ZERO;
+        let mut row_y = Vec3A::ZERO;
+        let mut row_z = Vec3A::ZERO;
         row_x[kx] = 1.0;
         row_x[kz] = -sx;
         row_y[ky] = 1.0;
         row_y[kz] = -sy;
         row_z[kz] = sz;
         RayPre {
-            origin: ray.origin,
-            row_x,
-            row_y,
-            row_z,
+            origin: ray.origin.into(),
+            shear: Mat3A::from_cols(row_x, row_y, row_z).transpose(),
         }
     }
 }
@@ -56,12 +53,12 @@ impl RayPre {
 /// Distance and barycentrics `(t, b1, b2)` of a hit with `0 < t < t_max`, both faces counted.
 #[inline]
 pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32, f32)> {
-    let a = tri[0] - pre.origin;
-    let b = tri[1] - pre.origin;
-    let c = tri[2] - pre.origin;
-    let (ax, ay) = (a.dot(pre.row_x), a.dot(pre.row_y));
-    let (bx, by) = (b.dot(pre.row_x), b.dot(pre.row_y));
-    let (cx, cy) = (c.dot(pre.row_x), c.dot(pre.row_y));
+    let a = pre.shear * (Vec3A::from(tri[0]) - pre.origin);
+    let b = pre.shear * (Vec3A::from(tri[1]) - pre.origin);
+    let c = pre.shear * (Vec3A::from(tri[2]) - pre.origin);
+    let (ax, ay) = (a.x, a.y);
+    let (bx, by) = (b.x, b.y);
+    let (cx, cy) = (c.x, c.y);
     let mut u = cx * by - cy * bx;
     let mut v = ax * cy - ay * cx;
     let mut w = bx * ay - by * ax;
@@ -77,7 +74,7 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
     if det == 0.0 {
         return None;
     }
-    let (az, bz, cz) = (a.dot(pre.row_z), b.dot(pre.row_z), c.dot(pre.row_z));
+    let (az, bz, cz) = (a.z, b.z, c.z);
     let t_scaled = u * az + v * bz + w * cz;
     // Most candidates that pass the edge tests lie behind the origin (a shadow ray's own
     // triangle) or beyond the best hit: reject those before the division. `t_scaled` with the
@@ -89,8 +86,7 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
     let far = t_max * det.abs();
     // NaN fails `> 0` as it fails the exact test below.
     let ahead = t_signed > 0.0;
-    if !ahead || (far >= f32::MIN_POSITIVE && t_signed > far * (1.0 + 8.0 * f32::EPSILON))
-    {
+    if !ahead || (far >= f32::MIN_POSITIVE && t_signed > far * (1.0 + 8.0 * f32::EPSILON)) {
         return None;
     }
     let inv_det = 1.0 / det;

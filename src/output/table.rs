@@ -70,7 +70,10 @@ mod tests {
         ]];
         write_csv(&path, &["a", "b", "c"], &rows).unwrap();
         let (header, back) = read_csv(&path, "table").unwrap();
-        assert_eq!((header, back), (vec!["a".into(), "b".into(), "c".into()], rows.clone()));
+        assert_eq!(
+            (header, back),
+            (vec!["a".into(), "b".into(), "c".into()], rows.clone())
+        );
         std::fs::remove_file(&path).unwrap();
         assert_eq!(csv_line(&rows[0]), "\"[0.1,0.2]\",\"say \"\"hi\"\"\",");
     }
