@@ -36,8 +36,12 @@ pub fn render_eye<A: Intersect>(
 ) -> (Image, RayCounts) {
     let (w, h) = (film.width, film.height);
     let tiles_x = w.div_ceil(TILE);
+    // One tile per task: tiles differ in cost by orders of magnitude (sky against a glass
+    // sphere), and rayon's default splitting left a core idle for about a tenth of each eye
+    // waiting on the last large chunk.
     let tiles: Vec<(Vec<Vec3>, RayCounts)> = (0..tile_count(w, h))
         .into_par_iter()
+        .with_max_len(1)
         .map(|t| {
             let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
