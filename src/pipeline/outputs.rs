@@ -12,6 +12,7 @@ use crate::output::{
     write_single_view,
 };
 use crate::render::View;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// The views of one frame, linear radiance.
@@ -110,9 +111,18 @@ impl Writer {
                 None
             }
             OutputSpec::Png { .. } => {
-                for &v in &self.rig {
-                    write_png(&path(&v.name()), f.view(v)?, &display)?;
-                    files.push(path(&v.name()));
+                // One PNG per eye, encoded in parallel (deflate is the slow part).
+                let written: Vec<Result<PathBuf>> = self
+                    .rig
+                    .par_iter()
+                    .map(|&v| {
+                        let p = path(&v.name());
+                        write_png(&p, f.view(v)?, &display)?;
+                        Ok(p)
+                    })
+                    .collect();
+                for p in written {
+                    files.push(p?);
                 }
                 None
             }

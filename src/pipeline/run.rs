@@ -9,6 +9,7 @@ use crate::error::{Error, Result};
 use crate::output::write_csv;
 use crate::render::{RayCounts, View, tile_count};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
 use std::fmt;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -159,8 +160,12 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             ]);
         }
         let t = Instant::now();
-        for wr in &mut writers {
-            summary.files.extend(wr.frame(&stereo)?);
+        // Writers are independent (each its own files and state), so they encode in parallel;
+        // the files are listed in output order whatever finished first.
+        let written: Vec<Result<Vec<PathBuf>>> =
+            writers.par_iter_mut().map(|wr| wr.frame(&stereo)).collect();
+        for files in written {
+            summary.files.extend(files?);
         }
         summary.output_seconds += t.elapsed().as_secs_f64();
         summary.frames += 1;
