@@ -235,8 +235,10 @@ impl Mailbox {
     }
 }
 
-/// Closest hit: every leaf's triangles against the best distance so far.
-struct Closest<'a, T: Tally> {
+/// The leaf tests of a walk. Closest hit (`ANY = false`): every triangle against the best
+/// distance so far. Any hit (`ANY = true`): the walk ends at the first triangle hit before
+/// `t_max`, which stays the limit.
+struct LeafTests<'a, T: Tally, const ANY: bool> {
     mailbox: Mailbox,
     pre: RayPre,
     triangles: &'a [[Vec3; 3]],
@@ -245,7 +247,20 @@ struct Closest<'a, T: Tally> {
     tally: &'a mut T,
 }
 
-impl<T: Tally> Visit for Closest<'_, T> {
+impl<'a, T: Tally, const ANY: bool> LeafTests<'a, T, ANY> {
+    fn new(tree: &'a impl LeafWalk, ray: &Ray, t_max: f32, tally: &'a mut T) -> Self {
+        LeafTests {
+            mailbox: Mailbox::new(),
+            pre: RayPre::new(ray),
+            triangles: tree.triangles(),
+            best: t_max,
+            hit: None,
+            tally,
+        }
+    }
+}
+
+impl<T: Tally, const ANY: bool> Visit for LeafTests<'_, T, ANY> {
     #[inline]
     fn limit(&self) -> f32 {
         self.best
@@ -261,46 +276,11 @@ impl<T: Tally> Visit for Closest<'_, T> {
             self.tally.test();
             if let Some((t, b1, b2)) = intersect(&self.pre, &self.triangles[p as usize], self.best)
             {
-                self.best = t;
                 self.hit = Some(Hit { t, prim: p, b1, b2 });
-            }
-        }
-        false
-    }
-
-    #[inline]
-    fn inner(&mut self) {
-        self.tally.inner();
-    }
-}
-
-/// Any hit: the walk ends at the first triangle hit before `t_max`.
-struct Occluded<'a, T: Tally> {
-    mailbox: Mailbox,
-    pre: RayPre,
-    triangles: &'a [[Vec3; 3]],
-    t_max: f32,
-    found: bool,
-    tally: &'a mut T,
-}
-
-impl<T: Tally> Visit for Occluded<'_, T> {
-    #[inline]
-    fn limit(&self) -> f32 {
-        self.t_max
-    }
-
-    #[inline]
-    fn leaf(&mut self, prims: &[u32]) -> bool {
-        self.tally.leaf();
-        for &p in prims {
-            if self.mailbox.seen(p) {
-                continue;
-            }
-            self.tally.test();
-            if intersect(&self.pre, &self.triangles[p as usize], self.t_max).is_some() {
-                self.found = true;
-                return true;
+                if ANY {
+                    return true;
+                }
+                self.best = t;
             }
         }
         false
@@ -318,29 +298,15 @@ pub(super) fn closest_hit(
     t_max: f32,
     tally: &mut impl Tally,
 ) -> Option<Hit> {
-    let mut v = Closest {
-        mailbox: Mailbox::new(),
-        pre: RayPre::new(ray),
-        triangles: tree.triangles(),
-        best: t_max,
-        hit: None,
-        tally,
-    };
+    let mut v = LeafTests::<_, false>::new(tree, ray, t_max, tally);
     tree.walk(&WalkRay::new(ray), t_max, &mut v);
     v.hit
 }
 
 pub(super) fn any_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32, tally: &mut impl Tally) -> bool {
-    let mut v = Occluded {
-        mailbox: Mailbox::new(),
-        pre: RayPre::new(ray),
-        triangles: tree.triangles(),
-        t_max,
-        found: false,
-        tally,
-    };
+    let mut v = LeafTests::<_, true>::new(tree, ray, t_max, tally);
     tree.walk(&WalkRay::new(ray), t_max, &mut v);
-    v.found
+    v.hit.is_some()
 }
 
 #[cfg(test)]
