@@ -19,13 +19,14 @@ use crate::compare::{Planes, Thresholds, compare};
 use crate::error::{Error, Result};
 use crate::output::Image;
 use crate::pipeline::{FrameStats, FrameTracer, LoadedPipeline, parse_frame_range};
+use crate::render::View;
 use results::write_files;
 use std::path::PathBuf;
 
 /// Keys set by path, with their values.
 type Overrides = Vec<(String, String)>;
-/// The views of one frame by name.
-type FrameViews = Vec<(String, Planes)>;
+/// The views of one frame.
+type FrameViews = Vec<(View, Planes)>;
 
 /// Keys the high-quality render sets itself; every other swept key is part of what it renders.
 const SPP: &str = "render.spp";
@@ -112,18 +113,13 @@ fn reference_overrides(combo: &[(String, String)], spp: u32, depth: u32) -> Vec<
 fn trace_frames(
     p: &LoadedPipeline,
     frames: (u32, u32),
-    mut on_frame: impl FnMut(usize, Vec<(String, Image)>, FrameStats),
+    mut on_frame: impl FnMut(usize, Vec<(View, Image)>, FrameStats),
 ) {
     let views = p.rig_views();
     let mut tracer = FrameTracer::new(p);
     for (k, f) in (frames.0..=frames.1).enumerate() {
         let (traced, stats) = tracer.trace(f, &views, &|_| {});
-        let named = traced
-            .views
-            .into_iter()
-            .map(|(v, img)| (v.name(), img))
-            .collect();
-        on_frame(k, named, stats);
+        on_frame(k, traced.views, stats);
     }
 }
 
@@ -193,7 +189,7 @@ pub fn sweep(
             planes.push(
                 views
                     .iter()
-                    .map(|(n, img)| (n.clone(), Planes::from_image(img)))
+                    .map(|(v, img)| (*v, Planes::from_image(img)))
                     .collect(),
             )
         });
@@ -223,14 +219,14 @@ pub fn sweep(
                 if r == 0 {
                     s.eyes[k] = views
                         .iter()
-                        .map(|(name, img)| {
+                        .map(|(view, img)| {
                             let reference = reference[k]
                                 .iter()
-                                .find(|(n, _)| n == name)
+                                .find(|(v, _)| v == view)
                                 .map(|(_, planes)| planes)
                                 .expect("a combination traces the views of its reference");
                             let c = compare(&Planes::from_image(img), reference, &thresholds);
-                            (name.clone(), EyeError::from(&c))
+                            (view.name(), EyeError::from(&c))
                         })
                         .collect();
                 }
