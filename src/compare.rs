@@ -37,25 +37,45 @@ pub struct Thresholds {
     #[arg(long, default_value_t = 1e-6)]
     pub warn: f32,
     /// Relative failure threshold (difference over the mean magnitude of the two values).
-    #[arg(long = "failrelative", default_value_t = 0.0)]
+    #[arg(
+        long = "failrelative",
+        value_name = "FAILRELATIVE",
+        default_value_t = 0.0
+    )]
     pub fail_relative: f32,
     /// Relative warning threshold.
-    #[arg(long = "warnrelative", default_value_t = 0.0)]
+    #[arg(
+        long = "warnrelative",
+        value_name = "WARNRELATIVE",
+        default_value_t = 0.0
+    )]
     pub warn_relative: f32,
     /// Percentage of pixels allowed to fail.
-    #[arg(long = "failpercent", default_value_t = 0.0)]
+    #[arg(
+        long = "failpercent",
+        value_name = "FAILPERCENT",
+        default_value_t = 0.0
+    )]
     pub fail_percent: f32,
     /// Percentage of pixels allowed to warn.
-    #[arg(long = "warnpercent", default_value_t = 0.0)]
+    #[arg(
+        long = "warnpercent",
+        value_name = "WARNPERCENT",
+        default_value_t = 0.0
+    )]
     pub warn_percent: f32,
     /// Fail if any value differs by more than this.
-    #[arg(long = "hardfail", default_value_t = f32::INFINITY)]
+    #[arg(long = "hardfail", value_name = "HARDFAIL", default_value_t = f32::INFINITY)]
     pub hard_fail: f32,
     /// Warn if any value differs by more than this.
-    #[arg(long = "hardwarn", default_value_t = f32::INFINITY)]
+    #[arg(long = "hardwarn", value_name = "HARDWARN", default_value_t = f32::INFINITY)]
     pub hard_warn: f32,
     /// Number of failing pixels that still pass.
-    #[arg(long = "allowfailures", default_value_t = 0)]
+    #[arg(
+        long = "allowfailures",
+        value_name = "ALLOWFAILURES",
+        default_value_t = 0
+    )]
     pub allow_failures: u64,
 }
 

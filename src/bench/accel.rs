@@ -46,6 +46,7 @@ pub struct AccelBenchOptions {
     /// Split strategies to measure.
     #[arg(
         long = "split",
+        value_name = "SPLIT",
         value_enum,
         value_delimiter = ',',
         default_value = "center,median,sah"

@@ -47,7 +47,7 @@ pub struct SweepOptions {
     #[arg(long, default_value_t = 3)]
     pub repeat: usize,
     /// Folder for the results.
-    #[arg(long = "out", default_value = "out/sweep")]
+    #[arg(long = "out", value_name = "OUT", default_value = "out/sweep")]
     pub out_dir: PathBuf,
     /// Frame range A..B (inclusive), overriding the pipeline's [frames].
     #[arg(long, value_parser = parse_frame_range)]
