@@ -231,9 +231,32 @@ pub struct FileComparison {
 }
 
 pub fn compare_files(a: &Path, b: &Path, t: &Thresholds) -> Result<FileComparison> {
-    let va = read_planes(a)?;
-    let vb = read_planes(b)?;
-    if let ([(name, pa)], [(_, pb)]) = (va.as_slice(), vb.as_slice()) {
+    compare_views(&read_planes(a)?, &read_planes(b)?, t)
+}
+
+/// `compare_files`, and with `diff = Some((out, scale))` the difference images too, reading
+/// each file once.
+pub fn compare_files_with_diff(
+    a: &Path,
+    b: &Path,
+    t: &Thresholds,
+    diff: Option<(&Path, f32)>,
+) -> Result<FileComparison> {
+    let (va, vb) = (read_planes(a)?, read_planes(b)?);
+    let result = compare_views(&va, &vb, t)?;
+    if let Some((out, scale)) = diff {
+        write_differences(&va, &vb, out, scale)?;
+    }
+    Ok(result)
+}
+
+/// Compares the views of two files, read already.
+fn compare_views(
+    va: &[(String, Planes)],
+    vb: &[(String, Planes)],
+    t: &Thresholds,
+) -> Result<FileComparison> {
+    if let ([(name, pa)], [(_, pb)]) = (va, vb) {
         // One view each: compare them whatever they are called (a plain RGB file against one
         // eye of a stereo pair), as idiff would.
         let c = compare(pa, pb, t);
@@ -246,7 +269,7 @@ pub fn compare_files(a: &Path, b: &Path, t: &Thresholds) -> Result<FileCompariso
     }
     let mut views = Vec::new();
     let mut missing = Vec::new();
-    for (name, pa) in &va {
+    for (name, pa) in va {
         match vb.iter().find(|(n, _)| n == name) {
             Some((_, pb)) => views.push((name.clone(), compare(pa, pb, t))),
             None => missing.push(name.clone()),
@@ -301,12 +324,15 @@ pub fn difference_planes(a: &Planes, b: &Planes, scale: f32) -> Planes {
 /// `--diff OUT`: the absolute difference (times `scale`) of every view both files hold, as a
 /// float EXR; with several views, one file per view, the view name added before the extension.
 /// Returns the files written.
-pub fn write_differences(a: &Path, b: &Path, out: &Path, scale: f32) -> Result<Vec<PathBuf>> {
-    let va = read_planes(a)?;
-    let vb = read_planes(b)?;
+fn write_differences(
+    va: &[(String, Planes)],
+    vb: &[(String, Planes)],
+    out: &Path,
+    scale: f32,
+) -> Result<Vec<PathBuf>> {
     let several = va.len() > 1;
     let mut written = Vec::new();
-    for (name, pa) in &va {
+    for (name, pa) in va {
         let Some((_, pb)) = vb.iter().find(|(n, _)| n == name) else {
             continue;
         };

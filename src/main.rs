@@ -163,14 +163,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
             scale,
             json,
         } => {
-            let result = compare::compare_files(&a, &b, &thresholds)
-                .and_then(|r| {
-                    if let Some(out) = &diff {
-                        compare::write_differences(&a, &b, out, scale)?;
-                    }
-                    Ok(r)
-                })
-                .map_err(|e| Error::Compare(Box::new(e)))?;
+            let result = compare::compare_files_with_diff(
+                &a,
+                &b,
+                &thresholds,
+                diff.as_deref().map(|out| (out, scale)),
+            )
+            .map_err(|e| Error::Compare(Box::new(e)))?;
             if json {
                 println!(
                     "{}",

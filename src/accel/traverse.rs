@@ -96,6 +96,36 @@ pub(super) trait Visit {
 }
 
 impl KdTree {
+    /// `closest_hit` with its work counted.
+    pub fn closest_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> Option<Hit> {
+        closest_hit(self, ray, t_max, c)
+    }
+
+    /// `any_hit` with its work counted.
+    pub fn any_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> bool {
+        any_hit(self, ray, t_max, c)
+    }
+}
+
+/// Asks the cache for a node the walk may visit next. The below child sits next to its parent;
+/// the above child is a subtree away and, on a tree larger than the cache, a miss the walk would
+/// otherwise wait for when it goes there (about half the time).
+#[inline(always)]
+fn prefetch<T>(p: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint: it reads nothing into the program and cannot fault.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+            (p as *const T).cast(),
+        );
+    }
+}
+
+impl LeafWalk for KdTree {
+    fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+
     #[inline]
     fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
         if self.nodes.is_empty() || self.bounds.is_empty() {
@@ -159,40 +189,6 @@ impl KdTree {
                 t_far = t_plane;
             }
         }
-    }
-
-    /// `closest_hit` with its work counted.
-    pub fn closest_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> Option<Hit> {
-        closest_hit(self, ray, t_max, c)
-    }
-
-    /// `any_hit` with its work counted.
-    pub fn any_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> bool {
-        any_hit(self, ray, t_max, c)
-    }
-}
-
-/// Asks the cache for a node the walk may visit next. The below child sits next to its parent;
-/// the above child is a subtree away and, on a tree larger than the cache, a miss the walk would
-/// otherwise wait for when it goes there (about half the time).
-#[inline(always)]
-fn prefetch<T>(p: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint: it reads nothing into the program and cannot fault.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-            (p as *const T).cast(),
-        );
-    }
-}
-
-impl LeafWalk for KdTree {
-    fn triangles(&self) -> &[[Vec3; 3]] {
-        &self.triangles
-    }
-
-    fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
-        KdTree::walk(self, ray, t_max, visit)
     }
 }
 
