@@ -1,4 +1,5 @@
-//! kd-tree construction. `sah` uses the O(N log N) event sweep of `sah.rs`; `center` (middle of
+//! kd-tree construction. `sah` (the default) uses the binned build of `binned.rs`, `sah-exact` the
+//! O(N log N) event sweep of `sah.rs`; `center` (middle of
 //! the node's longest axis) and `median` (object median on that axis) use the simple recursive
 //! builder here, which also hosts the quadratic SAH search the literature starts from, kept as
 //! the test oracle of the fast build. Both share the split rules of `split.rs`.
@@ -49,7 +50,18 @@ impl KdTree {
             .fold(Aabb::EMPTY, |acc, it| acc.union(&it.bounds));
         let n = items.len().max(1) as f32;
         let max_depth = ((8.0 + 1.3 * n.log2()).round() as u32).min(MAX_DEPTH);
-        let root = if params.method == SplitMethod::Sah && !quadratic {
+        if params.method == SplitMethod::Sah && !quadratic {
+            let flat = super::binned::build(&triangles, bounds, &params, max_depth);
+            return KdTree {
+                nodes: flat.nodes,
+                prim_refs: flat.refs,
+                triangles,
+                bounds,
+                params,
+                build_seconds: start.elapsed().as_secs_f64(),
+            };
+        }
+        let root = if params.method == SplitMethod::SahExact && !quadratic {
             super::sah::build(&triangles, items, bounds, &params, max_depth)
         } else {
             let builder = Builder {
@@ -83,7 +95,9 @@ impl Builder<'_> {
             None
         } else {
             match self.params.method {
-                SplitMethod::Sah => self.quadratic_sah_split(&items, &node_box),
+                SplitMethod::Sah | SplitMethod::SahExact => {
+                    self.quadratic_sah_split(&items, &node_box)
+                }
                 SplitMethod::Center => self.spatial_split(&items, &node_box, false),
                 SplitMethod::Median => self.spatial_split(&items, &node_box, true),
             }

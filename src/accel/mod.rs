@@ -4,12 +4,13 @@
 //! update (`update.rs`) reads only the posed triangles and node matrices of a frame.
 //!
 //! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
-//! shares), `build` and `sah` (the builders), `tree` (the compact layout), `traverse` and
+//! shares), `build`, `binned` and `sah` (the builders), `tree` (the compact layout), `traverse` and
 //! `refit` (the two walks), `instances` (the two-level top), `update` (the per-frame policy),
 //! `stats`, `triangle` (the watertight ray-triangle test). Only what this file re-exports is
 //! visible outside.
 
 mod aabb;
+mod binned;
 mod build;
 mod instances;
 mod params;

@@ -8,8 +8,11 @@ use serde::{Deserialize, Serialize};
 pub enum SplitMethod {
     Center,
     Median,
+    /// Binned SAH where nodes are large, exact where small (`binned.rs`): the default.
     #[default]
     Sah,
+    /// The exact O(N log N) event sweep (`sah.rs`): the reference for the fast build's quality.
+    SahExact,
 }
 
 /// Build constants. Defaults: K_T = 15, K_I = 20 and an empty-space factor of 0.8 (a cost

@@ -326,7 +326,10 @@ mod tests {
     use glam::Vec3;
 
     fn same_tree(tris: Vec<[Vec3; 3]>, what: &str) {
-        let fast = KdTree::build(tris.clone(), BuildParams::default());
+        let fast = KdTree::build(
+            tris.clone(),
+            BuildParams::with_method(super::super::SplitMethod::SahExact),
+        );
         let slow = KdTree::build_quadratic_sah(tris, BuildParams::default());
         assert_eq!(fast.shape(), slow.shape(), "{what}: trees differ");
         assert_eq!(fast.stats().sah_cost, slow.stats().sah_cost, "{what}");

@@ -36,6 +36,19 @@ impl Node {
         }
     }
 
+    /// The same node with its leaf references moved `base` entries on (inner nodes unchanged),
+    /// for appending a separately built subtree.
+    pub(super) fn with_refs_from(self, base: u32) -> Node {
+        if self.is_leaf() {
+            Node {
+                a: self.a + base,
+                ..self
+            }
+        } else {
+            self
+        }
+    }
+
     #[inline]
     pub fn is_leaf(&self) -> bool {
         self.b & 3 == 3

@@ -29,6 +29,7 @@ impl AccelMethod {
     pub fn name(&self) -> &'static str {
         match self {
             AccelMethod::Split(SplitMethod::Sah) => "sah",
+            AccelMethod::Split(SplitMethod::SahExact) => "sah-exact",
             AccelMethod::Split(SplitMethod::Center) => "center",
             AccelMethod::Split(SplitMethod::Median) => "median",
             AccelMethod::BruteForce => "brute-force",
