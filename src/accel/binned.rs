@@ -20,21 +20,13 @@
 //!   does not depend on the thread count.
 
 use super::aabb::Aabb;
+use super::bins::{BIN_STORE, Bins, Grid, Ref};
 use super::params::BuildParams;
 use super::split::{PARALLEL_THRESHOLD, Split};
 use super::tree::Node;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::cell::RefCell;
-
-/// The part of one triangle inside the current node, by its bounds (arrays, not `Vec3`, so the
-/// per-axis loops index without glam's checked `match`).
-#[derive(Clone, Copy, Debug)]
-struct Ref {
-    lo: [f32; 3],
-    hi: [f32; 3],
-    prim: u32,
-}
 
 /// At or below this many references a node tries every reference bound as a plane (measured on
 /// the ladder: the brute-force count beats binning in time up to about here, and matches the
@@ -84,7 +76,7 @@ pub(super) struct Flat {
 impl Flat {
     /// Appends a subtree built on its own (leaf reference indices shift; the above-child offsets
     /// are relative and stay as they are).
-    fn append(&mut self, other: Flat) {
+    pub(super) fn append(&mut self, other: Flat) {
         let base = self.refs.len() as u32;
         self.nodes
             .extend(other.nodes.into_iter().map(|n| n.with_refs_from(base)));
@@ -195,79 +187,6 @@ fn keep(best: &mut Option<(f32, Split)>, cost: f32, axis: usize, pos: f32, plana
                 planar_below,
             },
         ));
-    }
-}
-
-/// The bins of one node: `count` equal slices of the node box on each axis.
-struct Grid {
-    count: usize,
-    origin: [f32; 3],
-    extent: [f32; 3],
-    inv_width: [f32; 3],
-}
-
-impl Grid {
-    fn new(node_box: &Aabb, count: usize) -> Grid {
-        let extent = (node_box.max - node_box.min).to_array();
-        Grid {
-            count,
-            origin: node_box.min.to_array(),
-            extent,
-            inv_width: extent.map(|e| if e > 0.0 { count as f32 / e } else { 0.0 }),
-        }
-    }
-
-    /// The bin of coordinate `x` on `axis` (`as usize` saturates and maps NaN to 0; the min keeps
-    /// the node's upper face in the last bin). Counting and refinement both bin through here.
-    #[inline]
-    fn bin(&self, x: f32, axis: usize) -> usize {
-        (((x - self.origin[axis]) * self.inv_width[axis]).min((self.count - 1) as f32)) as usize
-    }
-}
-
-/// Per-axis counts of references by the bin of their lower bound and of their upper bound.
-struct Bins {
-    count: usize,
-    /// `[axis][lower, upper][bin]`, flattened.
-    counts: Vec<u32>,
-}
-
-thread_local! {
-    /// The bin counts' storage, reused from node to node on each thread.
-    static BIN_STORE: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
-}
-
-impl Bins {
-    fn with_storage(count: usize, mut counts: Vec<u32>) -> Bins {
-        counts.clear();
-        counts.resize(6 * count, 0);
-        Bins { count, counts }
-    }
-
-    fn lo(&self, axis: usize) -> &[u32] {
-        &self.counts[2 * axis * self.count..][..self.count]
-    }
-
-    fn hi(&self, axis: usize) -> &[u32] {
-        &self.counts[(2 * axis + 1) * self.count..][..self.count]
-    }
-
-    fn add(&mut self, refs: &[Ref], grid: &Grid) {
-        let c = self.count;
-        let counts = &mut self.counts[..6 * c];
-        for r in refs {
-            for a in 0..3 {
-                counts[2 * a * c + grid.bin(r.lo[a], a)] += 1;
-                counts[(2 * a + 1) * c + grid.bin(r.hi[a], a)] += 1;
-            }
-        }
-    }
-
-    fn merge(mut self, o: Bins) -> Bins {
-        for (x, y) in self.counts.iter_mut().zip(&o.counts) {
-            *x += y;
-        }
-        self
     }
 }
 

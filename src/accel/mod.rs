@@ -4,13 +4,16 @@
 //! update (`update.rs`) reads only the posed triangles and node matrices of a frame.
 //!
 //! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
-//! shares), `build`, `binned` and `sah` (the builders), `tree` (the compact layout), `traverse` and
+//! shares), `build`, `binned` (with `bins`: the default), `sah` (the exact sweep) and `bounded`
+//! (the refit-friendly topology) are the builders, `tree` (the compact layout), `traverse` and
 //! `refit` (the two walks), `instances` (the two-level top), `update` (the per-frame policy),
 //! `stats`, `triangle` (the watertight ray-triangle test). Only what this file re-exports is
 //! visible outside.
 
 mod aabb;
 mod binned;
+mod bins;
+mod bounded;
 mod build;
 mod instances;
 mod params;

@@ -7,6 +7,7 @@
 //! compact 8-byte nodes of the static path are untouched: the planes live beside them.
 
 use super::aabb::Aabb;
+use super::params::BuildParams;
 use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit};
 use super::tree::{KdTree, MAX_DEPTH};
 use super::{Hit, Intersect, Ray};
@@ -23,6 +24,18 @@ pub struct RefitTree {
 }
 
 impl RefitTree {
+    /// A bounded kd-tree over `triangles`, built for refitting: each triangle in one leaf
+    /// (`bounded.rs`), its planes fitted to the triangles as they are now.
+    pub fn build(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> RefitTree {
+        let topology = Arc::new(super::bounded::build_topology(triangles.clone(), params));
+        RefitTree::refit(topology, triangles)
+    }
+
+    /// The topology, for refitting it to a later pose.
+    pub fn topology(&self) -> &Arc<KdTree> {
+        &self.topology
+    }
+
     /// Refits `topology` (built over an earlier pose of the same triangles) to `triangles`.
     pub fn refit(topology: Arc<KdTree>, triangles: Vec<[Vec3; 3]>) -> RefitTree {
         assert_eq!(

@@ -3,12 +3,13 @@
 //! - static: one world-space tree for all static objects, built on the first frame and reused;
 //! - rigid: an instance, its object-space tree built once and placed by the node's world matrix
 //!   each frame;
-//! - deforming: its own tree, reused on a frame where its triangles did not change; otherwise,
-//!   by `[accel] update`: `rebuild`, `refit` (the topology kept, bounded-kd-tree planes
-//!   refitted), or `auto` (refit, and rebuild once the refitted SAH cost exceeds
-//!   `auto_threshold` times the last fresh build's cost). Refitted planes bound whole triangles
-//!   where the perfect-split build referenced clipped pieces, so a refit costs tree quality at
-//!   once, not only as the mesh drifts; `auto` measures exactly that.
+//! - deforming: reused on a frame where its triangles did not change; otherwise, by
+//!   `[accel] update`: `rebuild` (a fresh kd-tree every frame, the fastest to trace), `refit` (a
+//!   bounded kd-tree, `bounded.rs`, built once with each triangle in one leaf and its planes
+//!   refitted every frame), or `auto` (the bounded tree refitted, rebuilt once the refitted SAH
+//!   cost exceeds `auto_threshold` times the cost it had when built). The rule compares SAH costs,
+//!   not measured times, so the same pipeline makes the same choices, and the same images, on
+//!   every run and machine.
 //!
 //! Every frame logs one row per object (the static ones as one row): action, reason, time. The
 //! update reads the posed frame's triangles and node matrices, nothing else of the scene.
@@ -89,14 +90,12 @@ impl fmt::Display for Reason {
             Reason::RigidMoved => "rigid motion: transform updated",
             Reason::DeformingFirstFrame => "deforming mesh (skin or morph weights): first frame",
             Reason::DeformingUnchanged => "deforming mesh did not change this frame",
-            Reason::RefitRequested => "update = refit: topology kept, bounds refitted",
+            Reason::RefitRequested => "update = refit: bounded tree kept, planes refitted",
             Reason::RebuildRequested => "update = rebuild: deforming mesh changed",
             Reason::AutoWithinThreshold => {
-                "auto: refitted cost within the threshold of the last fresh build"
+                "auto: refitted cost within the threshold of the last build"
             }
-            Reason::AutoPastThreshold => {
-                "auto: refitted cost past the threshold of the last fresh build"
-            }
+            Reason::AutoPastThreshold => "auto: refitted cost past the threshold of the last build",
         })
     }
 }
@@ -123,10 +122,11 @@ enum State {
     Deforming(Option<Deforming>),
 }
 
-/// A deforming object's topology last built, its fresh SAH cost (the baseline `auto` measures
-/// drift against), the triangles it was last fitted to, and the part in use.
+/// A deforming object's bounded-tree topology last built (none under `rebuild`), its SAH cost
+/// when built (the baseline `auto` measures drift against), the triangles it was last fitted
+/// to, and the part in use.
 struct Deforming {
-    topology: Arc<KdTree>,
+    topology: Option<Arc<KdTree>>,
     baseline: f64,
     triangles: Vec<[Vec3; 3]>,
     part: Part,
@@ -277,14 +277,22 @@ impl Policy {
         first: u32,
     ) -> (Part, Action, Reason, Option<f64>) {
         let build = |tris: Vec<[Vec3; 3]>| {
-            let topology = Arc::new(KdTree::build(tris.clone(), self.params));
-            let baseline = topology.stats().sah_cost;
-            let part = Part::world(topology.clone(), PrimMap::Offset(first));
-            Deforming {
-                topology,
-                baseline,
-                triangles: tris,
-                part,
+            if self.mode == UpdateMode::Rebuild {
+                let tree = Arc::new(KdTree::build(tris.clone(), self.params));
+                Deforming {
+                    topology: None,
+                    baseline: tree.stats().sah_cost,
+                    triangles: tris,
+                    part: Part::world(tree, PrimMap::Offset(first)),
+                }
+            } else {
+                let fitted = Arc::new(RefitTree::build(tris.clone(), self.params));
+                Deforming {
+                    topology: Some(fitted.topology().clone()),
+                    baseline: fitted.sah_cost(),
+                    triangles: tris,
+                    part: Part::refitted(fitted, PrimMap::Offset(first)),
+                }
             }
         };
         let Some(d) = slot.as_mut() else {
@@ -305,8 +313,8 @@ impl Policy {
                 None,
             );
         }
-        if self.mode != UpdateMode::Rebuild {
-            let refit = Arc::new(RefitTree::refit(d.topology.clone(), tris.clone()));
+        if let Some(topology) = &d.topology {
+            let refit = Arc::new(RefitTree::refit(topology.clone(), tris.clone()));
             let cost = refit.sah_cost();
             if self.mode == UpdateMode::Refit || cost <= self.threshold * d.baseline {
                 d.part = Part::refitted(refit, PrimMap::Offset(first));
