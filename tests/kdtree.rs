@@ -248,14 +248,19 @@ fn the_tree_does_not_depend_on_the_thread_count() {
             [c, c + rng.v(), c + rng.v()]
         })
         .collect();
-    let build = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| KdTree::build(tris.clone(), BuildParams::default()).shape())
-    };
-    assert!(build(1) == build(2), "trees differ between 1 and 2 threads");
+    for method in [SplitMethod::Sah, SplitMethod::SahExact] {
+        let build = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| KdTree::build(tris.clone(), BuildParams::with_method(method)).shape())
+        };
+        assert!(
+            build(1) == build(2),
+            "{method:?}: trees differ between 1 and 2 threads"
+        );
+    }
 }
 
 /// Long thin slivers: 20 units long and a millionth wide, in a fan and in parallel stacks.
