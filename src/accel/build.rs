@@ -2,7 +2,7 @@
 //! O(N log N) event sweep of `sah.rs`; `center` (middle of
 //! the node's longest axis) and `median` (object median on that axis) use the simple recursive
 //! builder here, which also hosts the quadratic SAH search the literature starts from, kept as
-//! the test oracle of the fast build. Both share the split rules of `split.rs`.
+//! the test oracle of the exact sweep. Both share the split rules of `split.rs`.
 
 use super::aabb::Aabb;
 use super::params::{BuildParams, SplitMethod};
