@@ -283,3 +283,38 @@ fn refit_decay_is_recorded_and_auto_keeps_it_within_its_threshold() {
         auto.len()
     );
 }
+
+#[test]
+fn auto_rebuilds_a_kd_tree_when_the_frame_samples_each_triangle_many_times() {
+    use stereotrace::accel::REBUILD_SAMPLES_PER_TRIANGLE;
+    let scene = load("CesiumMan/CesiumMan.glb");
+    let animations: Vec<_> = scene.animations.iter().collect();
+    let triangles = pose::pose(&scene, &[]).geometry.triangle_list().len() as f64;
+    let actions = |samples: f64| {
+        let mut updater = Updater::new(
+            &scene,
+            &animations,
+            BuildParams::default(),
+            UpdateMode::Auto,
+            1.3,
+        )
+        .with_samples_per_frame(samples as u64);
+        let mut seen = Vec::new();
+        for f in 0..6 {
+            let overrides = animation::sample(&animations, scene.nodes.len(), f as f32 / 24.0);
+            let (_, rows) = updater.update(&pose::pose(&scene, &overrides));
+            seen.extend(
+                rows.into_iter()
+                    .filter(|r| r.object != "static")
+                    .map(|r| r.action.as_str()),
+            );
+        }
+        seen
+    };
+    let many = actions(2.0 * REBUILD_SAMPLES_PER_TRIANGLE * triangles);
+    assert_eq!(many[0], "build");
+    assert!(many[1..].iter().all(|a| *a == "rebuild"), "{many:?}");
+    let few = actions(0.5 * REBUILD_SAMPLES_PER_TRIANGLE * triangles);
+    assert_eq!(few[0], "build");
+    assert!(few[1..].iter().all(|a| *a == "refit"), "{few:?}");
+}

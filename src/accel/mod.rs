@@ -56,7 +56,7 @@ pub use params::{BuildParams, SplitMethod};
 pub use stats::TreeStats;
 pub use traverse::WalkCounts;
 pub use tree::KdTree;
-pub use update::{Action, LogRow, Reason, UpdateMode, Updater};
+pub use update::{Action, LogRow, REBUILD_SAMPLES_PER_TRIANGLE, Reason, UpdateMode, Updater};
 
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {

@@ -6,10 +6,12 @@
 //! - deforming: reused on a frame where its triangles did not change; otherwise, by
 //!   `[accel] update`: `rebuild` (a fresh kd-tree every frame, the fastest to trace), `refit` (a
 //!   bounded kd-tree, `bounded.rs`, built once with each triangle in one leaf and its planes
-//!   refitted every frame), or `auto` (the bounded tree refitted, rebuilt once the refitted SAH
-//!   cost exceeds `auto_threshold` times the cost it had when built). The rule compares SAH costs,
-//!   not measured times, so the same pipeline makes the same choices, and the same images, on
-//!   every run and machine.
+//!   refitted every frame), or `auto`: a mesh that the frame samples many times per triangle
+//!   (`REBUILD_SAMPLES_PER_TRIANGLE`) is rebuilt as a kd-tree, since the faster trace repays the
+//!   build; any other is the bounded tree refitted, rebuilt once the refitted SAH cost exceeds
+//!   `auto_threshold` times the cost it had when built. Both rules read counts and SAH costs, not
+//!   measured times, so the same pipeline makes the same choices, and the same images, on every
+//!   run and machine.
 //!
 //! Every frame logs one row per object (the static ones as one row): action, reason, time. The
 //! update reads the posed frame's triangles and node matrices, nothing else of the scene.
@@ -37,6 +39,16 @@ pub enum UpdateMode {
     #[default]
     Auto,
 }
+
+/// Under `auto`, a deforming mesh sampled more than this many times per triangle each frame
+/// (camera samples of both eyes) is rebuilt as a kd-tree instead of refitted. Where rebuilding
+/// starts to pay, measured (update and tracing per frame, rebuild against refit): BrainStem
+/// (61,666 triangles, 320x240) at about 20 samples per triangle (8 spp), CesiumMan (4.7k,
+/// 160x120) about 60, AnimatedMorphSphere (960, 160x120) about 70: the fewer pixels the mesh
+/// covers, the later. 30 takes the BrainStem side at 16 spp and refits CesiumMan at low
+/// resolutions; it rebuilds AnimatedMorphSphere at 160x120 1 spp, where refitting is 1.2 ms
+/// a frame faster. A count of the samples that really reach the mesh would place it better.
+pub const REBUILD_SAMPLES_PER_TRIANGLE: f64 = 30.0;
 
 /// What the update did to an object this frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,6 +91,7 @@ pub enum Reason {
     RebuildRequested,
     AutoWithinThreshold,
     AutoPastThreshold,
+    AutoManySamples,
 }
 
 impl fmt::Display for Reason {
@@ -90,12 +103,15 @@ impl fmt::Display for Reason {
             Reason::RigidMoved => "rigid motion: transform updated",
             Reason::DeformingFirstFrame => "deforming mesh (skin or morph weights): first frame",
             Reason::DeformingUnchanged => "deforming mesh did not change this frame",
-            Reason::RefitRequested => "update = refit: bounded tree kept, planes refitted",
+            Reason::RefitRequested => "update = refit: bounded tree kept, boxes refitted",
             Reason::RebuildRequested => "update = rebuild: deforming mesh changed",
             Reason::AutoWithinThreshold => {
                 "auto: refitted cost within the threshold of the last build"
             }
             Reason::AutoPastThreshold => "auto: refitted cost past the threshold of the last build",
+            Reason::AutoManySamples => {
+                "auto: many samples per triangle, a fresh kd-tree repays its build"
+            }
         })
     }
 }
@@ -136,6 +152,8 @@ pub struct Updater {
     params: BuildParams,
     mode: UpdateMode,
     auto_threshold: f64,
+    /// Camera samples per frame, when the caller says (see `REBUILD_SAMPLES_PER_TRIANGLE`).
+    samples_per_frame: Option<f64>,
     /// Triangle ranges of the static objects, and their shared part once built.
     statics: Vec<SceneObject>,
     static_part: Option<Part>,
@@ -175,10 +193,17 @@ impl Updater {
             params,
             mode,
             auto_threshold: auto_threshold as f64,
+            samples_per_frame: None,
             statics,
             static_part: None,
             moving,
         }
+    }
+
+    /// Tells `auto` how many camera samples each frame takes; without it `auto` always refits.
+    pub fn with_samples_per_frame(mut self, samples: u64) -> Updater {
+        self.samples_per_frame = Some(samples as f64);
+        self
     }
 
     /// Brings the structure up to date with a posed frame.
@@ -217,6 +242,7 @@ impl Updater {
             params: self.params,
             mode: self.mode,
             threshold: self.auto_threshold,
+            samples_per_frame: self.samples_per_frame,
         };
         for (o, state) in &mut self.moving {
             let t = Instant::now();
@@ -265,6 +291,7 @@ struct Policy {
     params: BuildParams,
     mode: UpdateMode,
     threshold: f64,
+    samples_per_frame: Option<f64>,
 }
 
 impl Policy {
@@ -276,8 +303,18 @@ impl Policy {
         tris: Vec<[Vec3; 3]>,
         first: u32,
     ) -> (Part, Action, Reason, Option<f64>) {
+        // A kd-tree rebuilt every frame, or a bounded tree refitted; fixed per object, since
+        // neither the triangle count nor the samples change between frames.
+        let many_samples = self
+            .samples_per_frame
+            .is_some_and(|s| s > REBUILD_SAMPLES_PER_TRIANGLE * tris.len() as f64);
+        let kd_tree = match self.mode {
+            UpdateMode::Rebuild => true,
+            UpdateMode::Refit => false,
+            UpdateMode::Auto => many_samples,
+        };
         let build = |tris: Vec<[Vec3; 3]>| {
-            if self.mode == UpdateMode::Rebuild {
+            if kd_tree {
                 let tree = Arc::new(KdTree::build(tris.clone(), self.params));
                 Deforming {
                     topology: None,
@@ -327,10 +364,10 @@ impl Policy {
                 return (d.part.clone(), Action::Refit, reason, Some(cost));
             }
         }
-        let reason = if self.mode == UpdateMode::Rebuild {
-            Reason::RebuildRequested
-        } else {
-            Reason::AutoPastThreshold
+        let reason = match self.mode {
+            UpdateMode::Rebuild => Reason::RebuildRequested,
+            _ if kd_tree => Reason::AutoManySamples,
+            _ => Reason::AutoPastThreshold,
         };
         *d = build(tris);
         let cost = d.baseline;

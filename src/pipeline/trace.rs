@@ -50,6 +50,10 @@ impl<'p> FrameTracer<'p> {
             BuildParams::with_method(p.spec.accel.split),
             p.spec.accel.update,
             p.spec.accel.auto_threshold,
+        )
+        // Both eyes' camera samples.
+        .with_samples_per_frame(
+            2 * p.spec.render.width as u64 * p.spec.render.height as u64 * p.spec.render.spp as u64,
         );
         FrameTracer {
             p,
