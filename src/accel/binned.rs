@@ -296,9 +296,9 @@ impl Ctx<'_> {
 
     /// Every reference bound strictly inside the node is a candidate, with the counts of the
     /// exact sweep (references reaching below, above, and lying in the plane), counted by brute
-    /// force over fixed-size padded lanes: no sort and no data-dependent branch, which in nodes
-    /// this small costs less than sorting (measured: 2x faster than an insertion-sorted sweep,
-    /// whose mispredicted branches dominated).
+    /// force over padded lanes with no data-dependent branch in the count. Measured on the 1M
+    /// peer mesh, 1 thread, whole build: 12 lanes for every small node matched an insertion-sorted
+    /// sweep (4.59 against 4.44 s); lanes in steps of four made it 4.03 s.
     fn exact_split(&self, refs: &[Ref], node_box: &Aabb) -> Option<(f32, Split)> {
         // Lanes in steps of four: most small nodes hold two to five references.
         match refs.len() {
