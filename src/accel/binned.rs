@@ -24,7 +24,7 @@ use super::aabb::Aabb;
 use super::bins::{BIN_STORE, Bins, Grid, Ref};
 use super::params::BuildParams;
 use super::split::{PARALLEL_THRESHOLD, Split};
-use super::tree::Node;
+use super::tree::{Flat, Node};
 use glam::Vec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -67,29 +67,6 @@ fn give(v: Vec<Ref>) {
             s.push(v)
         }
     });
-}
-
-/// Points the inner node at `here` to its above child, the next node to be written.
-fn link(out: &mut Flat, here: usize, split: &Split) {
-    out.nodes[here] = Node::inner(split.axis, split.pos, (out.nodes.len() - here) as u32);
-}
-
-/// The flattened tree: nodes in depth-first order and the leaves' primitive references.
-#[derive(Default)]
-pub(super) struct Flat {
-    pub nodes: Vec<Node>,
-    pub refs: Vec<u32>,
-}
-
-impl Flat {
-    /// Appends a subtree built on its own (leaf reference indices shift; the above-child offsets
-    /// are relative and stay as they are).
-    pub(super) fn append(&mut self, other: Flat) {
-        let base = self.refs.len() as u32;
-        self.nodes
-            .extend(other.nodes.into_iter().map(|n| n.with_refs_from(base)));
-        self.refs.extend(other.refs);
-    }
 }
 
 pub(super) fn build(
@@ -224,24 +201,13 @@ impl Ctx<'_> {
         let (below_box, above_box) = node_box.split(split.axis, split.pos);
         let (below, above) = self.partition(&refs, &split);
         give(refs);
-        let here = out.nodes.len();
-        out.nodes.push(Node::inner(split.axis, split.pos, 0));
-        if n > self.parallel_above {
-            let ((), other) = rayon::join(
-                || self.node(below, below_box, depth + 1, out),
-                || {
-                    let mut o = Flat::default();
-                    self.node(above, above_box, depth + 1, &mut o);
-                    o
-                },
-            );
-            link(out, here, &split);
-            out.append(other);
-        } else {
-            self.node(below, below_box, depth + 1, out);
-            link(out, here, &split);
-            self.node(above, above_box, depth + 1, out);
-        }
+        out.inner(
+            split.axis,
+            split.pos,
+            n > self.parallel_above,
+            |out| self.node(below, below_box, depth + 1, out),
+            |out| self.node(above, above_box, depth + 1, out),
+        );
     }
 
     /// A node of at most `EXACT_MAX` references and its whole subtree: no child holds more
@@ -255,11 +221,13 @@ impl Ctx<'_> {
         let mut below = SmallVec::<[Ref; EXACT_MAX]>::new();
         let mut above = SmallVec::<[Ref; EXACT_MAX]>::new();
         self.partition_into(refs, &split, &mut below, &mut above);
-        let here = out.nodes.len();
-        out.nodes.push(Node::inner(split.axis, split.pos, 0));
-        self.small_node(&below, below_box, depth + 1, out);
-        link(out, here, &split);
-        self.small_node(&above, above_box, depth + 1, out);
+        out.inner(
+            split.axis,
+            split.pos,
+            false,
+            |out| self.small_node(&below, below_box, depth + 1, out),
+            |out| self.small_node(&above, above_box, depth + 1, out),
+        );
     }
 
     /// The node's split, or `None` after writing it as a leaf.
@@ -277,8 +245,7 @@ impl Ctx<'_> {
             self.find_split(refs, node_box)
         };
         if split.is_none() {
-            out.nodes.push(Node::leaf(out.refs.len() as u32, n as u32));
-            out.refs.extend(refs.iter().map(|r| r.prim));
+            out.leaf(refs.iter().map(|r| r.prim));
         }
         split
     }

@@ -14,10 +14,9 @@
 //! its leaves, so the kd-tree walk must never see it (`RefitTree::build` keeps it private).
 
 use super::aabb::Aabb;
-use super::binned::Flat;
 use super::params::BuildParams;
 use super::split::PARALLEL_THRESHOLD;
-use super::tree::{KdTree, MAX_DEPTH, Node};
+use super::tree::{Flat, KdTree, depth_cap};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -53,8 +52,7 @@ pub(super) fn build_topology(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> 
             max: Vec3::from_array(it.hi),
         })
     });
-    let n = items.len().max(1) as f32;
-    let max_depth = ((8.0 + 1.3 * n.log2()).round() as u32).min(MAX_DEPTH);
+    let max_depth = depth_cap(items.len());
     let ctx = Ctx { params, max_depth };
     let mut out = Flat {
         nodes: Vec::with_capacity(2 * items.len()),
@@ -107,9 +105,7 @@ impl Ctx {
             self.find_split(items, &node_box)
         };
         let Some(c) = choice else {
-            out.nodes
-                .push(Node::leaf(out.refs.len() as u32, items.len() as u32));
-            out.refs.extend(items.iter().map(|it| it.prim));
+            out.leaf(items.iter().map(|it| it.prim));
             return;
         };
         let bin = |it: &Item| centroid_bin(it.centroid[c.axis], c.origin, c.scale);
@@ -124,27 +120,13 @@ impl Ctx {
         let (mut below_box, mut above_box) = (node_box, node_box);
         below_box.max[axis] = node_box.max[axis].min(below_max);
         above_box.min[axis] = node_box.min[axis].max(above_min);
-        let here = out.nodes.len();
-        out.nodes.push(Node::inner(axis, c.position, 0));
-        let link = |out: &mut Flat| {
-            out.nodes[here] = Node::inner(axis, c.position, (out.nodes.len() - here) as u32)
-        };
-        if below.len() + above.len() > PARALLEL_THRESHOLD {
-            let ((), other) = rayon::join(
-                || self.node(below, below_box, depth + 1, out),
-                || {
-                    let mut o = Flat::default();
-                    self.node(above, above_box, depth + 1, &mut o);
-                    o
-                },
-            );
-            link(out);
-            out.append(other);
-        } else {
-            self.node(below, below_box, depth + 1, out);
-            link(out);
-            self.node(above, above_box, depth + 1, out);
-        }
+        out.inner(
+            axis,
+            c.position,
+            below.len() + above.len() > PARALLEL_THRESHOLD,
+            |out| self.node(below, below_box, depth + 1, out),
+            |out| self.node(above, above_box, depth + 1, out),
+        );
     }
 
     /// The cheapest centroid-bin boundary over the three axes, or `None` when a leaf is cheaper.

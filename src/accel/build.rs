@@ -9,7 +9,7 @@ use super::params::{BuildParams, SplitMethod};
 use super::split::{
     BuildNode, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler, consider_plane, side_of,
 };
-use super::tree::{KdTree, MAX_DEPTH, flatten};
+use super::tree::{KdTree, depth_cap, flatten};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -48,8 +48,7 @@ impl KdTree {
         let bounds = items
             .iter()
             .fold(Aabb::EMPTY, |acc, it| acc.union(&it.bounds));
-        let n = items.len().max(1) as f32;
-        let max_depth = ((8.0 + 1.3 * n.log2()).round() as u32).min(MAX_DEPTH);
+        let max_depth = depth_cap(items.len());
         if params.method == SplitMethod::Sah && !quadratic {
             let flat = super::binned::build(&triangles, bounds, &params, max_depth);
             return KdTree {

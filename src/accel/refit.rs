@@ -2,10 +2,9 @@
 //! the triangles move, its split planes no longer separate them. Bounded kd-trees (B-KD trees,
 //! Woop, Marmitt and Slusallek 2006) keep the topology and store, per inner node, bounds of each
 //! child recomputed bottom-up in O(n). B-KD trees store two planes on the split axis; this keeps
-//! each child's whole box (the "bounds that hold both children's extents"), so a ray is
-//! clipped on all three axes at every node, as in a BVH: on BrainStem that traced 1.15-1.3x faster
-//! than the two planes (`bench sweep`, 320x240, 1-16 spp: 4.0-5.1 Mrays/s against 3.1-4.4). Children may overlap;
-//! traversal visits them nearer first. The compact 8-byte nodes of the static path are untouched:
+//! each child's whole box, so a ray is clipped on all three axes at every node, as in a BVH: on
+//! BrainStem that traced 1.15-1.3x faster than the two planes (`bench sweep`, 320x240, 1-16 spp:
+//! 4.0-5.1 Mrays/s against 3.1-4.4). Children may overlap; traversal visits them nearer first. The compact 8-byte nodes of the static path are untouched:
 //! the boxes live beside them.
 
 use super::aabb::Aabb;
@@ -27,7 +26,7 @@ pub struct RefitTree {
 
 impl RefitTree {
     /// A bounded kd-tree over `triangles`, built for refitting: each triangle in one leaf
-    /// (`bounded.rs`), its planes fitted to the triangles as they are now.
+    /// (`bounded.rs`), its boxes fitted to the triangles as they are now.
     pub fn build(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> RefitTree {
         let topology = Arc::new(super::bounded::build_topology(triangles.clone(), params));
         RefitTree::refit(topology, triangles)

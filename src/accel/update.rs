@@ -5,7 +5,7 @@
 //!   each frame;
 //! - deforming: reused on a frame where its triangles did not change; otherwise, by
 //!   `[accel] update`: `rebuild` (a fresh kd-tree every frame, the fastest to trace), `refit` (a
-//!   bounded kd-tree, `bounded.rs`, built once with each triangle in one leaf and its planes
+//!   bounded kd-tree, `bounded.rs`, built once with each triangle in one leaf and its boxes
 //!   refitted every frame), or `auto`: a mesh that the frame samples many times per triangle
 //!   (`REBUILD_SAMPLES_PER_TRIANGLE`) is rebuilt as a kd-tree, since the faster trace repays the
 //!   build; any other is the bounded tree refitted, rebuilt once the refitted SAH cost exceeds
