@@ -71,10 +71,14 @@ pub fn pareto_front(points: &[Point]) -> Vec<usize> {
             .partial_cmp(&(points[b].x, points[b].y))
             .expect("non-finite points were filtered out")
     });
-    let mut front = Vec::new();
+    let mut front: Vec<usize> = Vec::new();
     let mut best_y = f64::INFINITY;
     for i in order {
-        if points[i].y < best_y {
+        // An exact copy of the last front point dominates nothing and is not dominated.
+        let copy = front
+            .last()
+            .is_some_and(|&j| (points[j].x, points[j].y) == (points[i].x, points[i].y));
+        if points[i].y < best_y || copy {
             best_y = points[i].y;
             front.push(i);
         }
@@ -308,8 +312,9 @@ mod tests {
             pt(4.0, 1.0), // as good in y, slower
             pt(0.5, f64::NAN),
             pt(1.0, 6.0), // dominated by (1, 5)
+            pt(2.0, 3.0), // a copy of (2, 3): neither dominates the other
         ];
-        assert_eq!(pareto_front(&pts), vec![0, 1, 3]);
+        assert_eq!(pareto_front(&pts), vec![0, 1, 7, 3]);
         // The oracle: a point is on the front iff nothing dominates it.
         for (i, p) in pts.iter().enumerate() {
             let dominated = pts

@@ -212,12 +212,15 @@ pub(super) fn write_files(
         &rows,
     )?;
 
+    // The front is found on the values as `summary.csv` prints them, so that the table's
+    // `pareto` column agrees with its own numbers when two times differ past the sixth decimal.
+    let printed = |v: f64| format!("{v:.6}").parse::<f64>().unwrap_or(v);
     let points: Vec<Point> = results
         .iter()
         .map(|r| Point {
             label: r.label(),
-            x: r.frame_seconds(),
-            y: r.mean_abs_error(),
+            x: printed(r.frame_seconds()),
+            y: printed(r.mean_abs_error()),
         })
         .collect();
     let front = chart::pareto_front(&points);
