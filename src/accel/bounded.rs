@@ -59,14 +59,7 @@ pub(super) fn build_topology(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> 
         refs: Vec::with_capacity(items.len()),
     };
     ctx.node(&mut items, bounds, 0, &mut out);
-    KdTree {
-        nodes: out.nodes,
-        prim_refs: out.refs,
-        triangles,
-        bounds,
-        params,
-        build_seconds: start.elapsed().as_secs_f64(),
-    }
+    KdTree::assemble(out.nodes, out.refs, triangles, bounds, params, start)
 }
 
 struct Ctx {

@@ -51,14 +51,7 @@ impl KdTree {
         let max_depth = depth_cap(items.len());
         if params.method == SplitMethod::Sah && !quadratic {
             let flat = super::binned::build(&triangles, bounds, &params, max_depth);
-            return KdTree {
-                nodes: flat.nodes,
-                prim_refs: flat.refs,
-                triangles,
-                bounds,
-                params,
-                build_seconds: start.elapsed().as_secs_f64(),
-            };
+            return KdTree::assemble(flat.nodes, flat.refs, triangles, bounds, params, start);
         }
         let root = if params.method == SplitMethod::SahExact && !quadratic {
             super::sah::build(&triangles, items, bounds, &params, max_depth)
@@ -71,14 +64,7 @@ impl KdTree {
             builder.build(items, bounds, 0)
         };
         let (nodes, prim_refs) = flatten(root);
-        KdTree {
-            nodes,
-            prim_refs,
-            triangles,
-            bounds,
-            params,
-            build_seconds: start.elapsed().as_secs_f64(),
-        }
+        KdTree::assemble(nodes, prim_refs, triangles, bounds, params, start)
     }
 }
 

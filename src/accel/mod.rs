@@ -16,6 +16,8 @@ mod bins;
 mod bounded;
 mod build;
 mod instances;
+mod lanes;
+mod packet;
 mod params;
 mod refit;
 mod sah;
@@ -52,6 +54,7 @@ pub(crate) mod test_rng {
 
 pub use aabb::Aabb;
 pub use instances::TwoLevel;
+pub use packet::LANES;
 pub use params::{BuildParams, SplitMethod};
 pub use stats::TreeStats;
 pub use traverse::WalkCounts;
@@ -91,6 +94,19 @@ pub trait Intersect: Sync {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit>;
     /// Whether any triangle is hit with `0 < t < t_max` (shadow rays).
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool;
+    /// `hits[i] = closest_hit(&rays[i], t_max[i])`, bit for bit; a kd-tree walks coherent rays
+    /// together.
+    fn closest_hits(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<Hit>]) {
+        for ((r, &t), h) in rays.iter().zip(t_max).zip(hits) {
+            *h = self.closest_hit(r, t);
+        }
+    }
+    /// `occluded[i] = any_hit(&rays[i], t_max[i])`.
+    fn any_hits(&self, rays: &[Ray], t_max: &[f32], occluded: &mut [bool]) {
+        for ((r, &t), o) in rays.iter().zip(t_max).zip(occluded) {
+            *o = self.any_hit(r, t);
+        }
+    }
 }
 
 /// The brute-force oracle: tests every triangle. Used by tests and as the slowest baseline.

@@ -3,13 +3,14 @@
 //! returns at the first hit. Rays parallel to a split plane, starting on one, or with zero
 //! direction components are handled explicitly rather than through inf/NaN arithmetic.
 
+use super::packet::{self, Run};
 use super::tree::{KdTree, MAX_DEPTH};
 use super::triangle::{RayPre, intersect};
 use super::{Hit, Intersect, Ray};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
-const STACK: usize = MAX_DEPTH as usize + 4;
+pub(super) const STACK: usize = MAX_DEPTH as usize + 4;
 
 /// What a walk did, for explaining speed (`bench accel`); the renderer counts nothing.
 pub trait Tally {
@@ -105,13 +106,61 @@ impl KdTree {
     pub fn any_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> bool {
         any_hit(self, ray, t_max, c)
     }
+
+    /// `closest_hits` with its work counted (a packet's node counts once for all its rays).
+    pub fn closest_hits_counted(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        hits: &mut [Option<Hit>],
+        c: &mut WalkCounts,
+    ) {
+        self.packets::<_, false>(rays, t_max, c, |i, h| hits[i] = h);
+    }
+
+    /// `any_hits` with its work counted.
+    pub fn any_hits_counted(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        occluded: &mut [bool],
+        c: &mut WalkCounts,
+    ) {
+        self.packets::<_, true>(rays, t_max, c, |i, h| occluded[i] = h.is_some());
+    }
+
+    /// Walks `rays` in packets where they share an octant, singly elsewhere; `out(i, hit)`.
+    fn packets<T: Tally, const ANY: bool>(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        tally: &mut T,
+        mut out: impl FnMut(usize, Option<Hit>),
+    ) {
+        assert_eq!(rays.len(), t_max.len(), "one limit per ray");
+        for run in packet::group(rays) {
+            match run {
+                Run::Single(i) => {
+                    let mut v = LeafTests::<_, ANY>::new(self, &rays[i], t_max[i], tally);
+                    self.walk(&WalkRay::new(&rays[i]), t_max[i], &mut v);
+                    out(i, v.hit);
+                }
+                Run::Packet(a, b, oct) => {
+                    let hits = self.packet_walk::<_, ANY>(&rays[a..b], &t_max[a..b], oct, tally);
+                    for (k, h) in hits.into_iter().take(b - a).enumerate() {
+                        out(a + k, h);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Asks the cache for a node the walk may visit next. The below child sits next to its parent;
 /// the above child is a subtree away and, on a tree larger than the cache, a miss the walk would
 /// otherwise wait for when it goes there (about half the time).
 #[inline(always)]
-fn prefetch<T>(p: &T) {
+pub(super) fn prefetch<T>(p: &T) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch is a hint: it reads nothing into the program and cannot fault.
     unsafe {
@@ -200,6 +249,14 @@ impl Intersect for KdTree {
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
         any_hit(self, ray, t_max, &mut NoTally)
     }
+
+    fn closest_hits(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<Hit>]) {
+        self.packets::<_, false>(rays, t_max, &mut NoTally, |i, h| hits[i] = h);
+    }
+
+    fn any_hits(&self, rays: &[Ray], t_max: &[f32], occluded: &mut [bool]) {
+        self.packets::<_, true>(rays, t_max, &mut NoTally, |i, h| occluded[i] = h.is_some());
+    }
 }
 
 /// A tree whose leaves list indices into its own triangles, walked front to back: the static
@@ -214,16 +271,17 @@ pub(super) trait LeafWalk {
 /// pieces reach (4-5 leaves on large meshes), and a ray crossing several of them would test it
 /// again in each. Skipping a retest is exact: a triangle that missed within the current limit
 /// misses within any later, smaller limit, and one that hit set the best hit already.
-struct Mailbox([u32; 8]);
+#[derive(Clone, Copy)]
+pub(super) struct Mailbox([u32; 8]);
 
 impl Mailbox {
-    fn new() -> Mailbox {
+    pub(super) fn new() -> Mailbox {
         Mailbox([u32::MAX; 8])
     }
 
     /// Whether `prim` was tested already; records it otherwise.
     #[inline]
-    fn seen(&mut self, prim: u32) -> bool {
+    pub(super) fn seen(&mut self, prim: u32) -> bool {
         let slot = &mut self.0[prim as usize & 7];
         let seen = *slot == prim;
         *slot = prim;

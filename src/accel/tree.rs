@@ -89,6 +89,25 @@ pub struct KdTree {
 pub const MAX_DEPTH: u32 = 60;
 
 impl KdTree {
+    /// The tree from a builder's arrays; `build_seconds` counts from `start`.
+    pub(super) fn assemble(
+        nodes: Vec<Node>,
+        prim_refs: Vec<u32>,
+        triangles: Vec<[Vec3; 3]>,
+        bounds: Aabb,
+        params: BuildParams,
+        start: std::time::Instant,
+    ) -> KdTree {
+        KdTree {
+            nodes,
+            prim_refs,
+            triangles,
+            bounds,
+            params,
+            build_seconds: start.elapsed().as_secs_f64(),
+        }
+    }
+
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }

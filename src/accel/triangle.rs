@@ -5,6 +5,7 @@
 //! functions that come out exactly zero are recomputed in f64, as the paper prescribes.
 
 use super::Ray;
+use super::lanes::F4;
 use glam::{Mat3A, Vec3, Vec3A};
 
 /// Per-ray constants of the shear transform, stored as a 3x3 matrix so that a vertex's sheared
@@ -97,6 +98,94 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
     Some((t, v * inv_det, w * inv_det))
 }
 
+/// Four rays' `RayPre`, lane by lane, so that one triangle is tested against four rays at once.
+pub(super) struct RayPre4 {
+    origin: [F4; 3],
+    /// `cols[c][r]`: row `r` of the shear's column `c`, per lane.
+    cols: [[F4; 3]; 3],
+    lanes: [RayPre; 4],
+}
+
+impl RayPre4 {
+    pub(super) fn new(lanes: [RayPre; 4]) -> RayPre4 {
+        let per_lane = |f: &dyn Fn(&RayPre) -> f32| F4::new(std::array::from_fn(|i| f(&lanes[i])));
+        RayPre4 {
+            origin: [0, 1, 2].map(|r| per_lane(&|p| p.origin[r])),
+            cols: [0, 1, 2].map(|c| [0, 1, 2].map(|r| per_lane(&|p| p.shear.col(c)[r]))),
+            lanes,
+        }
+    }
+
+    /// Lane `i`'s vertex `v` in sheared coordinates: `shear * (v - origin)` as glam computes it,
+    /// `(x_axis * v.x + y_axis * v.y) + z_axis * v.z`, lane by lane.
+    #[inline(always)]
+    fn sheared(&self, v: Vec3) -> [F4; 3] {
+        let rel = [v.x, v.y, v.z].map(F4::splat);
+        let rel = [0, 1, 2].map(|k| rel[k].sub(self.origin[k]));
+        [0, 1, 2].map(|r| {
+            self.cols[0][r]
+                .mul(rel[0])
+                .add(self.cols[1][r].mul(rel[1]))
+                .add(self.cols[2][r].mul(rel[2]))
+        })
+    }
+}
+
+/// `intersect` for the four rays of `pre` on the lanes set in `lanes`: bit `i` of the mask is set
+/// where `intersect(lane i, tri, t_max[i])` hits, with its `(t, b1, b2)` in lane `i`. Each lane
+/// runs the scalar test's IEEE operations in the same order, so results are bit for bit the
+/// scalar ones; a lane with an edge function exactly zero (the f64 recompute) runs the scalar
+/// test itself.
+#[inline(always)]
+pub(super) fn intersect4(
+    pre: &RayPre4,
+    tri: &[Vec3; 3],
+    t_max: F4,
+    lanes: u32,
+) -> (u32, [[f32; 4]; 3]) {
+    let [ax, ay, az] = pre.sheared(tri[0]);
+    let [bx, by, bz] = pre.sheared(tri[1]);
+    let [cx, cy, cz] = pre.sheared(tri[2]);
+    let u = cx.mul(by).sub(cy.mul(bx));
+    let v = ax.mul(cy).sub(ay.mul(cx));
+    let w = bx.mul(ay).sub(by.mul(ax));
+    let zero = F4::splat(0.0);
+    let exact_zero = u.eq(zero).or(v.eq(zero)).or(w.eq(zero)).bits() & lanes;
+    let negative = u.lt(zero).or(v.lt(zero)).or(w.lt(zero)).bits();
+    let positive = u.gt(zero).or(v.gt(zero)).or(w.gt(zero)).bits();
+    let det = u.add(v).add(w);
+    let t_scaled = u.mul(az).add(v.mul(bz)).add(w.mul(cz));
+    // The scalar test's pre-test before the division, lane by lane (see `intersect`).
+    let t_signed = t_scaled.flip_sign_of(det);
+    let far = t_max.mul(det.abs());
+    let ahead = t_signed.gt(zero).bits();
+    let beyond = far.ge(F4::splat(f32::MIN_POSITIVE)).bits()
+        & t_signed
+            .gt(far.mul(F4::splat(1.0 + 8.0 * f32::EPSILON)))
+            .bits();
+    let inv_det = F4::splat(1.0).div(det);
+    let t = t_scaled.mul(inv_det);
+    let in_range = t.gt(zero).bits() & t.lt(t_max).bits();
+    let mut hit = lanes
+        & !exact_zero
+        & !(negative & positive)
+        & !det.eq(zero).bits()
+        & ahead
+        & !beyond
+        & in_range;
+    let mut out = [t, v.mul(inv_det), w.mul(inv_det)].map(F4::to_array);
+    if exact_zero != 0 {
+        let limits = t_max.to_array();
+        for i in (0..4).filter(|i| exact_zero >> i & 1 == 1) {
+            if let Some((t, b1, b2)) = intersect(&pre.lanes[i], tri, limits[i]) {
+                hit |= 1 << i;
+                [out[0][i], out[1][i], out[2][i]] = [t, b1, b2];
+            }
+        }
+    }
+    (hit, out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,6 +215,60 @@ mod tests {
         assert!(intersect(&RayPre::new(&from_below), &tri(), 0.99).is_none());
         let away = Ray::new(Vec3::new(0.0, 0.0, 1.0), Vec3::Z);
         assert!(intersect(&RayPre::new(&away), &tri(), f32::INFINITY).is_none());
+    }
+
+    #[test]
+    fn four_lanes_give_the_scalar_results_bit_for_bit() {
+        let mut rng = crate::accel::test_rng::Lcg(3);
+        let mut cases = 0;
+        for k in 0..6000 {
+            // Every fourth triangle is axis-aligned with integer corners and the rays run through
+            // its edges and corners, where edge functions come out exactly zero.
+            let grid = k % 4 == 0;
+            let tri = if grid {
+                [
+                    Vec3::ZERO,
+                    Vec3::new(2.0, 0.0, 0.0),
+                    Vec3::new(0.0, 2.0, 0.0),
+                ]
+            } else {
+                let c = rng.v(4.0);
+                [c, c + rng.v(2.0) - 1.0, c + rng.v(2.0) - 1.0]
+            };
+            let rays: [Ray; 4] = std::array::from_fn(|i| {
+                if grid {
+                    let p = Vec3::new((k / 4 % 3) as f32, i as f32 * 0.5, 0.0);
+                    Ray::new(
+                        p + Vec3::Z * 3.0,
+                        Vec3::NEG_Z + rng.v(1e-3) * (i % 2) as f32,
+                    )
+                } else {
+                    Ray::new(rng.v(6.0) - 1.0, rng.v(2.0) - 1.0)
+                }
+            });
+            let limits: [f32; 4] = std::array::from_fn(|i| match (k + i) % 4 {
+                0 => f32::INFINITY,
+                1 => 2.0,
+                2 => rng.next() * 6.0,
+                _ => 1e-30,
+            });
+            let pres = rays.map(|r| RayPre::new(&r));
+            let pre4 = RayPre4::new(rays.map(|r| RayPre::new(&r)));
+            let lanes = if k % 5 == 0 { 0b1011 } else { 0b1111 };
+            let (hit, out) = intersect4(&pre4, &tri, F4::new(limits), lanes);
+            for i in 0..4 {
+                let scalar = (lanes >> i & 1 == 1)
+                    .then(|| intersect(&pres[i], &tri, limits[i]))
+                    .flatten();
+                let lane = (hit >> i & 1 == 1).then(|| (out[0][i], out[1][i], out[2][i]));
+                let bits = |h: Option<(f32, f32, f32)>| {
+                    h.map(|(t, b1, b2)| [t.to_bits(), b1.to_bits(), b2.to_bits()])
+                };
+                assert_eq!(bits(lane), bits(scalar), "case {k} lane {i}");
+                cases += scalar.is_some() as usize;
+            }
+        }
+        assert!(cases > 1000, "too few hits to mean anything: {cases}");
     }
 
     #[test]

@@ -6,7 +6,7 @@ pub use super::accel_table::{AccelRow, chart, csv_header, read_table};
 use super::accel_table::write_table;
 use super::median;
 use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
-use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, SplitMethod, WalkCounts};
+use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod, WalkCounts};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::scene::framing_camera;
@@ -60,6 +60,16 @@ pub struct AccelBenchOptions {
     /// tracing takes a fraction of a second, so on a shared machine more samples steady it.
     #[arg(long, default_value_t = 1)]
     pub trace_repeat: usize,
+    /// How kd-tree rows trace: `single` (one ray at a time) and/or `packet` (coherent runs of
+    /// up to four consecutive rays together, `closest_hits`/`any_hits`: rows named
+    /// `METHOD+packets`). Both find bit-identical hits.
+    #[arg(
+        long = "walk",
+        value_enum,
+        value_delimiter = ',',
+        default_value = "single"
+    )]
+    pub walks: Vec<Walk>,
     /// Write the table as CSV.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -85,6 +95,13 @@ pub struct AccelBenchOptions {
     /// Pareto front per scene).
     #[arg(long)]
     pub chart: Option<PathBuf>,
+}
+
+/// How `bench accel` hands rays to a kd-tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Walk {
+    Single,
+    Packet,
 }
 
 /// A UV sphere of about `n` triangles with a deterministic bumpy radius, so the mesh is not a
@@ -154,25 +171,71 @@ struct Found {
     sum_t: f64,
 }
 
+/// Per walk of a method: its row, primary and shadow times, and what the last pass found.
+type WalkRun = (AccelRow, Vec<f64>, Vec<f64>, Found, Found);
+
+/// Rays split into directions and limits once, so that packets take slices of both.
+struct RaySet {
+    rays: Vec<Ray>,
+    t_max: Vec<f32>,
+}
+
+impl RaySet {
+    fn new(timed: &[TimedRay]) -> RaySet {
+        RaySet {
+            rays: timed.iter().map(|(r, _)| *r).collect(),
+            t_max: timed.iter().map(|(_, t)| *t).collect(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.rays.len()
+    }
+
+    /// Runs `f(rays, t_max)` on chunks of 256 rays in parallel, results in chunk order.
+    fn chunks<R: Send>(&self, f: impl Fn(&[Ray], &[f32]) -> R + Sync) -> Vec<R> {
+        self.rays
+            .par_chunks(256)
+            .zip(self.t_max.par_chunks(256))
+            .map(|(r, t)| f(r, t))
+            .collect()
+    }
+}
+
 /// Traces all rays (closest hit or any hit) in parallel chunks; seconds and what was found. The
 /// sums are added chunk by chunk in order, so they do not depend on the thread count.
-fn time_rays(accel: &dyn Intersect, rays: &[TimedRay], any: bool) -> (f64, Found) {
+fn time_rays(accel: &dyn Intersect, rays: &RaySet, any: bool, walk: Walk) -> (f64, Found) {
     let t = Instant::now();
-    let chunks: Vec<Found> = rays
-        .par_chunks(256)
-        .map(|chunk| {
-            let mut f = Found::default();
-            for (r, tm) in chunk {
-                if any {
-                    f.hits += accel.any_hit(r, *tm) as u64;
-                } else if let Some(h) = accel.closest_hit(r, *tm) {
-                    f.hits += 1;
-                    f.sum_t += h.t as f64;
+    let chunks: Vec<Found> = rays.chunks(|rays, t_max| {
+        let mut f = Found::default();
+        let mut hits = [None; 256];
+        let mut occluded = [false; 256];
+        let n = rays.len();
+        match (walk, any) {
+            (Walk::Single, true) => {
+                for (r, &tm) in rays.iter().zip(t_max) {
+                    f.hits += accel.any_hit(r, tm) as u64;
+                }
+                return f;
+            }
+            (Walk::Single, false) => {
+                for (h, (r, &tm)) in hits.iter_mut().zip(rays.iter().zip(t_max)) {
+                    *h = accel.closest_hit(r, tm);
                 }
             }
-            f
-        })
-        .collect();
+            (Walk::Packet, true) => {
+                accel.any_hits(rays, t_max, &mut occluded[..n]);
+                f.hits = occluded[..n].iter().filter(|&&o| o).count() as u64;
+                return f;
+            }
+            (Walk::Packet, false) => accel.closest_hits(rays, t_max, &mut hits[..n]),
+        }
+        for h in hits[..n].iter().flatten() {
+            f.hits += 1;
+            f.sum_t += h.t as f64;
+        }
+        f
+    });
     let secs = t.elapsed().as_secs_f64();
     let found = chunks.iter().fold(Found::default(), |a, c| Found {
         hits: a.hits + c.hits,
@@ -181,22 +244,26 @@ fn time_rays(accel: &dyn Intersect, rays: &[TimedRay], any: bool) -> (f64, Found
     (secs, found)
 }
 
-/// Per ray: inner nodes, leaves and triangle tests of a kd-tree walk (an untimed pass).
-fn walk_work(tree: &KdTree, rays: &[TimedRay], any: bool) -> [f64; 3] {
-    let chunks: Vec<WalkCounts> = rays
-        .par_chunks(256)
-        .map(|chunk| {
-            let mut c = WalkCounts::default();
-            for (r, tm) in chunk {
-                if any {
-                    tree.any_hit_counted(r, *tm, &mut c);
-                } else {
-                    tree.closest_hit_counted(r, *tm, &mut c);
-                }
-            }
-            c
-        })
-        .collect();
+/// Per ray: inner nodes, leaves and triangle tests of a kd-tree walk (an untimed pass). A packet
+/// counts a node once for all its rays.
+fn walk_work(tree: &KdTree, rays: &RaySet, any: bool, walk: Walk) -> [f64; 3] {
+    let chunks: Vec<WalkCounts> = rays.chunks(|rays, t_max| {
+        let mut c = WalkCounts::default();
+        let mut hits = [None; 256];
+        let mut occluded = [false; 256];
+        let n = rays.len();
+        match (walk, any) {
+            (Walk::Single, true) => rays.iter().zip(t_max).for_each(|(r, &tm)| {
+                tree.any_hit_counted(r, tm, &mut c);
+            }),
+            (Walk::Single, false) => rays.iter().zip(t_max).for_each(|(r, &tm)| {
+                tree.closest_hit_counted(r, tm, &mut c);
+            }),
+            (Walk::Packet, true) => tree.any_hits_counted(rays, t_max, &mut occluded[..n], &mut c),
+            (Walk::Packet, false) => tree.closest_hits_counted(rays, t_max, &mut hits[..n], &mut c),
+        }
+        c
+    });
     let mut total = WalkCounts::default();
     chunks.iter().for_each(|c| total.add(c));
     let n = rays.len().max(1) as f64;
@@ -227,7 +294,7 @@ pub fn bench_accel(
             write_rays(&dir.join(format!("{name}_primary.rays")), &primary)?;
             write_rays(&dir.join(format!("{name}_shadow.rays")), &shadow)?;
         }
-        let mrays = |rays: &[TimedRay], secs: f64| rays.len() as f64 * 1e-6 / secs;
+        let mrays = |rays: usize, secs: f64| rays as f64 * 1e-6 / secs;
         let mut methods: Vec<AccelMethod> =
             opts.splits.iter().map(|&s| AccelMethod::Split(s)).collect();
         #[cfg(feature = "baselines")]
@@ -235,32 +302,53 @@ pub fn bench_accel(
         if tris.len() as f64 * (primary.len() + shadow.len()) as f64 <= opts.brute_force_budget {
             methods.push(AccelMethod::BruteForce);
         }
+        let (primary, shadow) = (RaySet::new(&primary), RaySet::new(&shadow));
         for method in methods {
-            let mut row = AccelRow {
-                scene: name.clone(),
-                method: method.name().into(),
-                triangles: tris.len(),
-                threads,
-                ..Default::default()
+            let walks = match method {
+                AccelMethod::Split(_) => opts.walks.clone(),
+                _ => vec![Walk::Single],
             };
-            let (mut builds, mut prim_t, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
-            let (mut primary_found, mut shadow_found) = (Found::default(), Found::default());
+            let mut runs: Vec<WalkRun> = walks
+                .iter()
+                .map(|w| {
+                    let row = AccelRow {
+                        scene: name.clone(),
+                        method: match w {
+                            Walk::Single => method.name().into(),
+                            Walk::Packet => format!("{}+packets", method.name()),
+                        },
+                        triangles: tris.len(),
+                        threads,
+                        ..Default::default()
+                    };
+                    (
+                        row,
+                        Vec::new(),
+                        Vec::new(),
+                        Found::default(),
+                        Found::default(),
+                    )
+                })
+                .collect();
+            let mut builds = Vec::new();
             for _ in 0..repeat {
                 let t = Instant::now();
                 let accel: Box<dyn Intersect> = match method {
                     AccelMethod::Split(s) => {
                         let tree = KdTree::build(tris.clone(), BuildParams::with_method(s));
                         let st = tree.stats();
-                        row.sah_cost = Some(st.sah_cost);
-                        row.nodes = Some(st.nodes);
-                        row.leaves = Some(st.leaves);
-                        row.max_depth = Some(st.max_depth);
-                        row.refs_per_triangle = Some(st.references_per_triangle);
-                        row.bytes = Some(st.bytes);
                         builds.push(tree.build_seconds);
-                        if row.primary_work.is_none() {
-                            row.primary_work = Some(walk_work(&tree, &primary, false));
-                            row.shadow_work = Some(walk_work(&tree, &shadow, true));
+                        for ((row, ..), &walk) in runs.iter_mut().zip(&walks) {
+                            row.sah_cost = Some(st.sah_cost);
+                            row.nodes = Some(st.nodes);
+                            row.leaves = Some(st.leaves);
+                            row.max_depth = Some(st.max_depth);
+                            row.refs_per_triangle = Some(st.references_per_triangle);
+                            row.bytes = Some(st.bytes);
+                            if row.primary_work.is_none() {
+                                row.primary_work = Some(walk_work(&tree, &primary, false, walk));
+                                row.shadow_work = Some(walk_work(&tree, &shadow, true, walk));
+                            }
                         }
                         Box::new(tree)
                     }
@@ -278,24 +366,31 @@ pub fn bench_accel(
                         Box::new(b)
                     }
                 };
+                // The walks alternate within each repeat, so machine noise hits them alike.
                 for _ in 0..opts.trace_repeat.max(1) {
-                    let (secs, hits) = time_rays(accel.as_ref(), &primary, false);
-                    prim_t.push(secs);
-                    primary_found = hits;
-                    let (secs, occluded) = time_rays(accel.as_ref(), &shadow, true);
-                    shadow_t.push(secs);
-                    shadow_found = occluded;
+                    for ((_, prim_t, shadow_t, prim_found, shadow_found), &walk) in
+                        runs.iter_mut().zip(&walks)
+                    {
+                        let (secs, hits) = time_rays(accel.as_ref(), &primary, false, walk);
+                        prim_t.push(secs);
+                        *prim_found = hits;
+                        let (secs, occluded) = time_rays(accel.as_ref(), &shadow, true, walk);
+                        shadow_t.push(secs);
+                        *shadow_found = occluded;
+                    }
                 }
             }
-            row.build_s = median(&builds);
-            row.build_ns_per_triangle = row.build_s * 1e9 / tris.len().max(1) as f64;
-            row.primary_mrays_s = mrays(&primary, median(&prim_t));
-            row.shadow_mrays_s = mrays(&shadow, median(&shadow_t));
-            row.primary_hits = Some(primary_found.hits);
-            row.mean_t = Some(primary_found.sum_t / primary_found.hits.max(1) as f64);
-            row.shadow_occluded = Some(shadow_found.hits);
-            progress(&row);
-            rows.push(row);
+            for (mut row, prim_t, shadow_t, primary_found, shadow_found) in runs {
+                row.build_s = median(&builds);
+                row.build_ns_per_triangle = row.build_s * 1e9 / tris.len().max(1) as f64;
+                row.primary_mrays_s = mrays(primary.len(), median(&prim_t));
+                row.shadow_mrays_s = mrays(shadow.len(), median(&shadow_t));
+                row.primary_hits = Some(primary_found.hits);
+                row.mean_t = Some(primary_found.sum_t / primary_found.hits.max(1) as f64);
+                row.shadow_occluded = Some(shadow_found.hits);
+                progress(&row);
+                rows.push(row);
+            }
         }
     }
     if let Some(path) = &opts.csv {

@@ -1,0 +1,242 @@
+//! Four f32 lanes for the packet walk: SSE2 on x86_64 (part of the architecture's baseline, so
+//! no runtime detection is needed), plain arrays elsewhere. Every operation is the lane-wise IEEE
+//! operation, so a lane computes bit for bit what the scalar walk computes for its ray.
+
+#[cfg(target_arch = "x86_64")]
+mod imp {
+    use std::arch::x86_64::*;
+
+    #[derive(Clone, Copy)]
+    pub struct F4(__m128);
+
+    #[derive(Clone, Copy)]
+    pub struct M4(__m128);
+
+    // SAFETY (every block below): SSE2 is enabled on every x86_64 target, and these intrinsics
+    // only compute on registers.
+    impl F4 {
+        #[inline(always)]
+        pub fn splat(v: f32) -> F4 {
+            F4(unsafe { _mm_set1_ps(v) })
+        }
+        #[inline(always)]
+        pub fn new(a: [f32; 4]) -> F4 {
+            F4(unsafe { _mm_loadu_ps(a.as_ptr()) })
+        }
+        #[inline(always)]
+        pub fn sub(self, o: F4) -> F4 {
+            F4(unsafe { _mm_sub_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn mul(self, o: F4) -> F4 {
+            F4(unsafe { _mm_mul_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn add(self, o: F4) -> F4 {
+            F4(unsafe { _mm_add_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn div(self, o: F4) -> F4 {
+            F4(unsafe { _mm_div_ps(self.0, o.0) })
+        }
+        /// `|self|`: the sign bit cleared.
+        #[inline(always)]
+        pub fn abs(self) -> F4 {
+            F4(unsafe { _mm_andnot_ps(_mm_set1_ps(-0.0), self.0) })
+        }
+        /// `self` with its sign flipped where `o` is negative (sign bit set).
+        #[inline(always)]
+        pub fn flip_sign_of(self, o: F4) -> F4 {
+            F4(unsafe { _mm_xor_ps(self.0, _mm_and_ps(o.0, _mm_set1_ps(-0.0))) })
+        }
+        #[inline(always)]
+        pub fn ge(self, o: F4) -> M4 {
+            M4(unsafe { _mm_cmpge_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn lt(self, o: F4) -> M4 {
+            M4(unsafe { _mm_cmplt_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn le(self, o: F4) -> M4 {
+            M4(unsafe { _mm_cmple_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn gt(self, o: F4) -> M4 {
+            M4(unsafe { _mm_cmpgt_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        pub fn eq(self, o: F4) -> M4 {
+            M4(unsafe { _mm_cmpeq_ps(self.0, o.0) })
+        }
+        /// `m ? a : b` lane by lane.
+        #[inline(always)]
+        pub fn select(m: M4, a: F4, b: F4) -> F4 {
+            F4(unsafe { _mm_or_ps(_mm_and_ps(m.0, a.0), _mm_andnot_ps(m.0, b.0)) })
+        }
+    }
+
+    impl M4 {
+        #[inline(always)]
+        pub fn all(on: bool) -> M4 {
+            M4(unsafe { _mm_castsi128_ps(_mm_set1_epi32(-(on as i32))) })
+        }
+        #[inline(always)]
+        pub fn or(self, o: M4) -> M4 {
+            M4(unsafe { _mm_or_ps(self.0, o.0) })
+        }
+        /// `self & !o`.
+        #[inline(always)]
+        pub fn and_not(self, o: M4) -> M4 {
+            M4(unsafe { _mm_andnot_ps(o.0, self.0) })
+        }
+        /// Bit `i` set when lane `i` is.
+        #[inline(always)]
+        pub fn bits(self) -> u32 {
+            unsafe { _mm_movemask_ps(self.0) as u32 }
+        }
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+mod imp {
+    #[derive(Clone, Copy)]
+    pub struct F4([f32; 4]);
+
+    #[derive(Clone, Copy)]
+    pub struct M4([bool; 4]);
+
+    impl F4 {
+        #[inline(always)]
+        pub fn splat(v: f32) -> F4 {
+            F4([v; 4])
+        }
+        #[inline(always)]
+        pub fn new(a: [f32; 4]) -> F4 {
+            F4(a)
+        }
+        #[inline(always)]
+        fn zip(self, o: F4, f: impl Fn(f32, f32) -> f32) -> F4 {
+            F4(std::array::from_fn(|i| f(self.0[i], o.0[i])))
+        }
+        #[inline(always)]
+        fn cmp(self, o: F4, f: impl Fn(f32, f32) -> bool) -> M4 {
+            M4(std::array::from_fn(|i| f(self.0[i], o.0[i])))
+        }
+        #[inline(always)]
+        pub fn sub(self, o: F4) -> F4 {
+            self.zip(o, |a, b| a - b)
+        }
+        #[inline(always)]
+        pub fn mul(self, o: F4) -> F4 {
+            self.zip(o, |a, b| a * b)
+        }
+        #[inline(always)]
+        pub fn add(self, o: F4) -> F4 {
+            self.zip(o, |a, b| a + b)
+        }
+        #[inline(always)]
+        pub fn div(self, o: F4) -> F4 {
+            self.zip(o, |a, b| a / b)
+        }
+        #[inline(always)]
+        pub fn abs(self) -> F4 {
+            F4(self.0.map(f32::abs))
+        }
+        #[inline(always)]
+        pub fn flip_sign_of(self, o: F4) -> F4 {
+            self.zip(o, |a, b| {
+                f32::from_bits(a.to_bits() ^ (b.to_bits() & 0x8000_0000))
+            })
+        }
+        #[inline(always)]
+        pub fn ge(self, o: F4) -> M4 {
+            self.cmp(o, |a, b| a >= b)
+        }
+        #[inline(always)]
+        pub fn lt(self, o: F4) -> M4 {
+            self.cmp(o, |a, b| a < b)
+        }
+        #[inline(always)]
+        pub fn le(self, o: F4) -> M4 {
+            self.cmp(o, |a, b| a <= b)
+        }
+        #[inline(always)]
+        pub fn gt(self, o: F4) -> M4 {
+            self.cmp(o, |a, b| a > b)
+        }
+        #[inline(always)]
+        pub fn eq(self, o: F4) -> M4 {
+            self.cmp(o, |a, b| a == b)
+        }
+        #[inline(always)]
+        pub fn select(m: M4, a: F4, b: F4) -> F4 {
+            F4(std::array::from_fn(
+                |i| if m.0[i] { a.0[i] } else { b.0[i] },
+            ))
+        }
+    }
+
+    impl M4 {
+        #[inline(always)]
+        pub fn all(on: bool) -> M4 {
+            M4([on; 4])
+        }
+        #[inline(always)]
+        pub fn or(self, o: M4) -> M4 {
+            M4(std::array::from_fn(|i| self.0[i] || o.0[i]))
+        }
+        #[inline(always)]
+        pub fn and_not(self, o: M4) -> M4 {
+            M4(std::array::from_fn(|i| self.0[i] && !o.0[i]))
+        }
+        #[inline(always)]
+        pub fn bits(self) -> u32 {
+            (0..4).map(|i| (self.0[i] as u32) << i).sum()
+        }
+    }
+}
+
+pub use imp::{F4, M4};
+
+impl F4 {
+    /// The lanes as an array.
+    #[inline(always)]
+    pub fn to_array(self) -> [f32; 4] {
+        // SAFETY: both representations are four f32s (an `__m128` or a `[f32; 4]`).
+        unsafe { std::mem::transmute::<F4, [f32; 4]>(self) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lanes_compute_what_scalars_compute() {
+        let a = [1.5f32, -0.0, f32::NAN, 3.0];
+        let b = [1.5f32, 0.0, 1.0, -2.0];
+        let (x, y) = (F4::new(a), F4::new(b));
+        // The same bits, or NaN on both sides (a NaN's payload is the hardware's choice).
+        let same = |l: f32, r: f32| l.to_bits() == r.to_bits() || (l.is_nan() && r.is_nan());
+        for i in 0..4 {
+            assert!(same(x.sub(y).to_array()[i], a[i] - b[i]));
+            assert!(same(x.mul(y).to_array()[i], a[i] * b[i]));
+            assert!(same(x.add(y).to_array()[i], a[i] + b[i]));
+            assert!(same(x.div(y).to_array()[i], a[i] / b[i]));
+            assert!(same(y.abs().to_array()[i], b[i].abs()));
+            let flipped = f32::from_bits(a[i].to_bits() ^ (b[i].to_bits() & 0x8000_0000));
+            assert!(same(x.flip_sign_of(y).to_array()[i], flipped));
+            assert_eq!(x.ge(y).bits() >> i & 1 == 1, a[i] >= b[i]);
+            assert_eq!(x.lt(y).bits() >> i & 1 == 1, a[i] < b[i]);
+            assert_eq!(x.le(y).bits() >> i & 1 == 1, a[i] <= b[i]);
+            assert_eq!(x.gt(y).bits() >> i & 1 == 1, a[i] > b[i]);
+            assert_eq!(x.eq(y).bits() >> i & 1 == 1, a[i] == b[i]);
+        }
+        let m = x.lt(F4::splat(2.0));
+        assert_eq!(m.bits(), 0b0011);
+        assert!(same(F4::select(m, x, y).to_array()[2], 1.0));
+        assert_eq!(M4::all(true).and_not(m).bits(), 0b1100);
+        assert_eq!(M4::all(false).or(m).bits(), 0b0011);
+    }
+}

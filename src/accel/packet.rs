@@ -1,0 +1,347 @@
+//! Packet traversal: up to four rays whose directions have the same sign on every axis walk the
+//! kd-tree together, so a node is fetched, and its branch taken, once for all of them (Wald et
+//! al., "Interactive Rendering with Coherent Ray Tracing", 2001). Coherent rays (neighbouring
+//! camera rays, their shadow rays to one light, the two eyes' rays of one pixel) visit nearly
+//! the same nodes.
+//!
+//! Exactness: each lane visits exactly the nodes the single-ray walk (`traverse.rs`) visits for
+//! its ray, in the same order, with the same parametric intervals (the same IEEE operations, lane
+//! by lane), and runs the same triangle tests against the same limits with its own mailbox. So
+//! every hit is bit for bit the single-ray hit, and images cannot change. The shared sign makes
+//! the front-to-back order of the two children the same for every lane that visits both; a lane
+//! visiting one child keeps the interval the single walk would give it.
+
+use super::lanes::{F4, M4};
+use super::traverse::{Mailbox, STACK, Tally, WalkRay, prefetch};
+use super::tree::KdTree;
+use super::triangle::{RayPre, RayPre4, intersect4};
+use super::{Hit, Ray};
+use std::mem::MaybeUninit;
+
+/// Rays per packet: one SSE register of f32.
+pub const LANES: usize = 4;
+
+/// Bit `axis` set where the direction is positive; `None` with a zero or NaN component, whose
+/// single-ray handling (a ray inside a split plane may visit both sides) the packet does not share.
+fn octant(r: &Ray) -> Option<u8> {
+    let mut bits = 0;
+    for (axis, d) in r.dir.to_array().into_iter().enumerate() {
+        if d > 0.0 {
+            bits |= 1 << axis;
+        } else if d.is_nan() || d == 0.0 {
+            return None;
+        }
+    }
+    Some(bits)
+}
+
+/// A run of rays `group` hands out: one ray to walk alone, or a packet of consecutive rays
+/// `start..end` in one octant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Run {
+    Single(usize),
+    Packet(usize, usize, u8),
+}
+
+/// Splits `rays` into runs of up to `LANES` consecutive rays of one octant, and rays no packet
+/// can take or that would travel alone.
+pub(super) fn group(rays: &[Ray]) -> impl Iterator<Item = Run> + '_ {
+    let mut start = 0;
+    std::iter::from_fn(move || {
+        let s = start;
+        let first = rays.get(s)?;
+        let Some(oct) = octant(first) else {
+            start += 1;
+            return Some(Run::Single(s));
+        };
+        let mut end = s + 1;
+        while end < rays.len() && end - s < LANES && octant(&rays[end]) == Some(oct) {
+            end += 1;
+        }
+        start = end;
+        Some(if end - s == 1 {
+            Run::Single(s)
+        } else {
+            Run::Packet(s, end, oct)
+        })
+    })
+}
+
+/// One lane's bit per set lane of `m`, lowest first.
+fn lanes_of(mut m: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            i
+        })
+    })
+}
+
+impl KdTree {
+    /// The walk of `rays` (2 to `LANES` rays, all in octant `oct`): per lane, the closest hit
+    /// before `t_max` (`ANY = false`) or the first hit found (`ANY = true`).
+    pub(super) fn packet_walk<T: Tally, const ANY: bool>(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        oct: u8,
+        tally: &mut T,
+    ) -> [Option<Hit>; LANES] {
+        let mut hits = [None; LANES];
+        let n = rays.len();
+        debug_assert!((1..=LANES).contains(&n) && t_max.len() == n);
+        if self.nodes.is_empty() || self.bounds.is_empty() {
+            return hits;
+        }
+        // Lanes past `n` copy the last ray and start inactive.
+        let ray = |i: usize| &rays[i.min(n - 1)];
+        let walk: [WalkRay; LANES] = std::array::from_fn(|i| WalkRay::new(ray(i)));
+        let mut entry = [0.0f32; LANES];
+        let mut exit = [0.0f32; LANES];
+        let mut active = 0u32;
+        for i in 0..n {
+            if let Some((a, b)) = walk[i].clip(&self.bounds, t_max[i]) {
+                (entry[i], exit[i]) = (a, b);
+                active |= 1 << i;
+            }
+        }
+        if active == 0 {
+            return hits;
+        }
+        let origin: [F4; 3] = std::array::from_fn(|a| F4::new(walk.each(|w| w.origin[a])));
+        let inv_dir: [F4; 3] = std::array::from_fn(|a| F4::new(walk.each(|w| w.inv_dir[a])));
+        let pre = RayPre4::new(std::array::from_fn(|i| RayPre::new(ray(i))));
+        let mut mailbox = [Mailbox::new(); LANES];
+        let mut best: [f32; LANES] = std::array::from_fn(|i| t_max[i.min(n - 1)]);
+        let mut best_v = F4::new(best);
+        // Lanes of an any-hit walk that have not hit yet.
+        let mut open = active;
+        let (mut t_min, mut t_far) = (F4::new(entry), F4::new(exit));
+        let mut stack = [const { MaybeUninit::<(u32, u32, F4, F4)>::uninit() }; STACK];
+        let mut sp = 0;
+        let mut node = 0usize;
+        let zero = F4::splat(0.0);
+        loop {
+            // A lane whose best hit lies before this node's entry is done with it (and, front to
+            // back, with every node on the stack): the single walk's stopping rule.
+            active &= !best_v.lt(t_min).bits();
+            if active != 0 {
+                let nd = self.nodes[node];
+                if !nd.is_leaf() {
+                    tally.inner();
+                    let axis = nd.axis();
+                    let split = F4::splat(nd.split());
+                    let below = node + 1;
+                    let above = node + nd.above_offset();
+                    prefetch(&self.nodes[above]);
+                    let positive = oct >> axis & 1 == 1;
+                    let o = origin[axis];
+                    let t_plane = split.sub(o).mul(inv_dir[axis]);
+                    // The single walk's cases per lane: `first` is the child on the origin's side;
+                    // `a`: only `first`; `b`: only the other; neither: both, split at the plane.
+                    let on_plane = if positive { 0 } else { o.eq(split).bits() };
+                    let first_below = o.lt(split).bits() | on_plane;
+                    let a_m = t_plane.gt(t_far).or(t_plane.le(zero));
+                    let b_m = t_plane.lt(t_min);
+                    let (a, b) = (a_m.bits(), b_m.bits());
+                    let first_near = if positive { first_below } else { !first_below };
+                    let (visit_first, visit_second) = (a | !b, !a);
+                    let near_lanes =
+                        active & ((first_near & visit_first) | (!first_near & visit_second));
+                    let far_lanes =
+                        active & ((first_near & visit_second) | (!first_near & visit_first));
+                    let both = M4::all(true).and_not(a_m.or(b_m));
+                    let (near, far) = if positive {
+                        (below, above)
+                    } else {
+                        (above, below)
+                    };
+                    if near_lanes == 0 {
+                        node = far;
+                        t_min = F4::select(both, t_plane, t_min);
+                        active = far_lanes;
+                        continue;
+                    }
+                    if far_lanes != 0 {
+                        stack[sp].write((
+                            far as u32,
+                            far_lanes,
+                            F4::select(both, t_plane, t_min),
+                            t_far,
+                        ));
+                        sp += 1;
+                    }
+                    node = near;
+                    t_far = F4::select(both, t_plane, t_far);
+                    active = near_lanes;
+                    continue;
+                }
+                tally.leaf();
+                for &p in &self.prim_refs[nd.leaf_range()] {
+                    let tri = &self.triangles[p as usize];
+                    let mut lanes = 0;
+                    for i in lanes_of(active) {
+                        if !mailbox[i].seen(p) {
+                            lanes |= 1 << i;
+                            tally.test();
+                        }
+                    }
+                    if lanes == 0 {
+                        continue;
+                    }
+                    let (hit, [t, b1, b2]) = intersect4(&pre, tri, best_v, lanes);
+                    if hit == 0 {
+                        continue;
+                    }
+                    for i in lanes_of(hit) {
+                        hits[i] = Some(Hit {
+                            t: t[i],
+                            prim: p,
+                            b1: b1[i],
+                            b2: b2[i],
+                        });
+                        if ANY {
+                            // Done: no later node's entry lies past minus infinity.
+                            best[i] = f32::NEG_INFINITY;
+                            active &= !(1 << i);
+                            open &= !(1 << i);
+                        } else {
+                            best[i] = t[i];
+                        }
+                    }
+                    best_v = F4::new(best);
+                }
+                if ANY && open == 0 {
+                    break;
+                }
+            }
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            // SAFETY: every entry below `sp` was written by a push above.
+            let (next, lanes, a, b) = unsafe { stack[sp].assume_init() };
+            node = next as usize;
+            active = lanes;
+            t_min = a;
+            t_far = b;
+        }
+        hits
+    }
+}
+
+/// `from_fn` over the lanes' walk rays.
+trait Each {
+    fn each(&self, f: impl Fn(&WalkRay) -> f32) -> [f32; LANES];
+}
+
+impl Each for [WalkRay; LANES] {
+    fn each(&self, f: impl Fn(&WalkRay) -> f32) -> [f32; LANES] {
+        std::array::from_fn(|i| f(&self[i]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_rng::Lcg;
+    use super::super::{BuildParams, Intersect, SplitMethod};
+    use super::*;
+    use glam::Vec3;
+
+    fn same(a: Option<Hit>, b: Option<Hit>) -> bool {
+        let bits =
+            |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()));
+        bits(a) == bits(b)
+    }
+
+    /// Packets of neighbouring rays (a pinhole's fan over a soup, and rays on split planes)
+    /// give exactly the single-ray hits and occlusion.
+    #[test]
+    fn packets_find_bit_identical_hits() {
+        let mut rng = Lcg(11);
+        let mut tris: Vec<[Vec3; 3]> = (0..3000)
+            .map(|_| {
+                let c = rng.v(10.0);
+                [c, c + rng.v(1.0) - 0.5, c + rng.v(1.0) - 0.5]
+            })
+            .collect();
+        // An axis-aligned grid that puts split planes where rays run.
+        for i in 0..6 {
+            let x = i as f32;
+            tris.push([
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x, 5.0, 0.0),
+                Vec3::new(x, 0.0, 5.0),
+            ]);
+        }
+        let mut rays = Vec::new();
+        let eye = Vec3::new(5.0, 5.0, -8.0);
+        for y in 0..40 {
+            for x in 0..40 {
+                let d = Vec3::new(x as f32 / 40.0 - 0.5, y as f32 / 40.0 - 0.5, 1.0);
+                rays.push(Ray::new(eye, d));
+            }
+        }
+        for _ in 0..2000 {
+            rays.push(Ray::new(rng.v(12.0) - 1.0, rng.v(2.0) - 1.0));
+        }
+        // Origins on grid planes, directions with one zero component mixed in.
+        for i in 0..400 {
+            let f = i as f32 * 0.0125;
+            rays.push(Ray::new(
+                Vec3::new(2.0, f, -1.0),
+                Vec3::new(0.3, 0.01 * f, 1.0),
+            ));
+            rays.push(Ray::new(Vec3::new(3.0, f, 9.0), Vec3::new(-0.2, 0.0, -1.0)));
+        }
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 3 == 0 { 9.0 } else { f32::INFINITY })
+            .collect();
+        for method in [SplitMethod::Sah, SplitMethod::Median] {
+            let tree = KdTree::build(tris.clone(), BuildParams::with_method(method));
+            let mut hits = vec![None; rays.len()];
+            let mut occluded = vec![false; rays.len()];
+            tree.closest_hits(&rays, &t_max, &mut hits);
+            tree.any_hits(&rays, &t_max, &mut occluded);
+            let mut found = 0;
+            for (i, r) in rays.iter().enumerate() {
+                let single = tree.closest_hit(r, t_max[i]);
+                assert!(
+                    same(hits[i], single),
+                    "{method:?} ray {i}: {:?} vs {single:?}",
+                    hits[i]
+                );
+                assert_eq!(occluded[i], tree.any_hit(r, t_max[i]), "{method:?} ray {i}");
+                found += single.is_some() as usize;
+            }
+            assert!(
+                found > rays.len() / 4,
+                "the rays must hit something: {found}"
+            );
+        }
+    }
+
+    #[test]
+    fn grouping_takes_runs_of_one_octant() {
+        let r = |x: f32, y: f32| Ray::new(Vec3::ZERO, Vec3::new(x, y, 1.0));
+        let rays = [
+            r(1.0, 1.0),
+            r(1.0, 1.0),
+            r(-1.0, 1.0),
+            r(0.0, 1.0),
+            r(1.0, 1.0),
+            r(1.0, 1.0),
+            r(1.0, 1.0),
+            r(1.0, 1.0),
+            r(1.0, 1.0),
+        ];
+        let seen: Vec<(usize, usize)> = group(&rays)
+            .map(|r| match r {
+                Run::Single(i) => (i, i + 1),
+                Run::Packet(a, b, _) => (a, b),
+            })
+            .collect();
+        assert_eq!(seen, vec![(0, 2), (2, 3), (3, 4), (4, 8), (8, 9)]);
+    }
+}
