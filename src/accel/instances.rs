@@ -13,6 +13,7 @@ use super::refit::RefitTree;
 use super::tree::KdTree;
 use super::{Hit, Intersect, Ray};
 use glam::Mat4;
+use smallvec::{SmallVec, smallvec};
 use std::sync::Arc;
 
 /// How a part's triangle indices map to the frame's global triangle indices.
@@ -118,6 +119,95 @@ impl Intersect for TwoLevel {
             (p.world_to_object.is_none() || p.bounds.clip_ray(ray, t_max).is_some())
                 && p.accel.any_hit(&p.local_ray(ray), t_max)
         })
+    }
+
+    /// Part by part as `closest_hit` does, each part taking the rays still in the running
+    /// (with their best hit so far as the limit) as one batch.
+    fn closest_hits(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<Hit>]) {
+        if let [part] = &self.parts[..]
+            && part.world_to_object.is_none()
+        {
+            // One world-space part (a static scene) takes every ray as it comes.
+            part.accel.closest_hits(rays, t_max, hits);
+            for h in hits.iter_mut().flatten() {
+                h.prim = part.map.global(h.prim);
+            }
+            return;
+        }
+        hits.fill(None);
+        let mut batch = Batch::default();
+        for part in &self.parts {
+            batch.clear();
+            for (i, ray) in rays.iter().enumerate() {
+                let limit = hits[i].map_or(t_max[i], |h| h.t);
+                if part.world_to_object.is_none() || part.bounds.clip_ray(ray, limit).is_some() {
+                    batch.push(i, part.local_ray(ray), limit);
+                }
+            }
+            let mut found: SmallVec<[Option<Hit>; 8]> = smallvec![None; batch.len()];
+            part.accel
+                .closest_hits(&batch.rays, &batch.limits, &mut found);
+            for (&i, h) in batch.lanes.iter().zip(found) {
+                if let Some(h) = h {
+                    hits[i] = Some(Hit {
+                        prim: part.map.global(h.prim),
+                        ..h
+                    });
+                }
+            }
+        }
+    }
+
+    fn any_hits(&self, rays: &[Ray], t_max: &[f32], occluded: &mut [bool]) {
+        if let [part] = &self.parts[..]
+            && part.world_to_object.is_none()
+        {
+            return part.accel.any_hits(rays, t_max, occluded);
+        }
+        occluded.fill(false);
+        let mut batch = Batch::default();
+        for part in &self.parts {
+            batch.clear();
+            for (i, ray) in rays.iter().enumerate() {
+                if !occluded[i]
+                    && (part.world_to_object.is_none()
+                        || part.bounds.clip_ray(ray, t_max[i]).is_some())
+                {
+                    batch.push(i, part.local_ray(ray), t_max[i]);
+                }
+            }
+            let mut found: SmallVec<[bool; 8]> = smallvec![false; batch.len()];
+            part.accel.any_hits(&batch.rays, &batch.limits, &mut found);
+            for (&i, o) in batch.lanes.iter().zip(found) {
+                occluded[i] |= o;
+            }
+        }
+    }
+}
+
+/// The rays a part takes from a batch: their indices in the batch, in the part's space.
+#[derive(Default)]
+struct Batch {
+    lanes: SmallVec<[usize; 8]>,
+    rays: SmallVec<[Ray; 8]>,
+    limits: SmallVec<[f32; 8]>,
+}
+
+impl Batch {
+    fn clear(&mut self) {
+        self.lanes.clear();
+        self.rays.clear();
+        self.limits.clear();
+    }
+
+    fn push(&mut self, lane: usize, ray: Ray, limit: f32) {
+        self.lanes.push(lane);
+        self.rays.push(ray);
+        self.limits.push(limit);
+    }
+
+    fn len(&self) -> usize {
+        self.lanes.len()
     }
 }
 

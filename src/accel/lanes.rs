@@ -53,6 +53,18 @@ mod imp {
         pub fn ge(self, o: F4) -> M4 {
             M4(unsafe { _mm_cmpge_ps(self.0, o.0) })
         }
+        /// `f32::max` lane by lane: a NaN operand yields the other.
+        #[inline(always)]
+        pub fn max_num(self, o: F4) -> F4 {
+            let m = F4(unsafe { _mm_max_ps(o.0, self.0) });
+            F4::select(M4(unsafe { _mm_cmpunord_ps(self.0, self.0) }), o, m)
+        }
+        /// `f32::min` lane by lane: a NaN operand yields the other.
+        #[inline(always)]
+        pub fn min_num(self, o: F4) -> F4 {
+            let m = F4(unsafe { _mm_min_ps(o.0, self.0) });
+            F4::select(M4(unsafe { _mm_cmpunord_ps(self.0, self.0) }), o, m)
+        }
         #[inline(always)]
         pub fn lt(self, o: F4) -> M4 {
             M4(unsafe { _mm_cmplt_ps(self.0, o.0) })
@@ -154,6 +166,14 @@ mod imp {
             self.cmp(o, |a, b| a >= b)
         }
         #[inline(always)]
+        pub fn max_num(self, o: F4) -> F4 {
+            self.zip(o, f32::max)
+        }
+        #[inline(always)]
+        pub fn min_num(self, o: F4) -> F4 {
+            self.zip(o, f32::min)
+        }
+        #[inline(always)]
         pub fn lt(self, o: F4) -> M4 {
             self.cmp(o, |a, b| a < b)
         }
@@ -200,6 +220,13 @@ mod imp {
 pub use imp::{F4, M4};
 
 impl F4 {
+    /// The columns of four rows: lane `i` of column `c` is `rows[i][c]` (a 4x4 transpose, which
+    /// the compiler turns into shuffles).
+    #[inline(always)]
+    pub fn columns(rows: [[f32; 4]; 4]) -> [F4; 4] {
+        std::array::from_fn(|c| F4::new([rows[0][c], rows[1][c], rows[2][c], rows[3][c]]))
+    }
+
     /// The lanes as an array.
     #[inline(always)]
     pub fn to_array(self) -> [f32; 4] {
@@ -228,6 +255,12 @@ mod tests {
             let flipped = f32::from_bits(a[i].to_bits() ^ (b[i].to_bits() & 0x8000_0000));
             assert!(same(x.flip_sign_of(y).to_array()[i], flipped));
             assert_eq!(x.ge(y).bits() >> i & 1 == 1, a[i] >= b[i]);
+            for (p, q, pv, qv) in [(x, y, a[i], b[i]), (y, x, b[i], a[i])] {
+                let (max, min) = (p.max_num(q).to_array()[i], p.min_num(q).to_array()[i]);
+                // Equal zeros of either sign are both right for `f32::max` and `f32::min`.
+                assert!(same(max, pv.max(qv)) || (max == 0.0 && pv.max(qv) == 0.0));
+                assert!(same(min, pv.min(qv)) || (min == 0.0 && pv.min(qv) == 0.0));
+            }
             assert_eq!(x.lt(y).bits() >> i & 1 == 1, a[i] < b[i]);
             assert_eq!(x.le(y).bits() >> i & 1 == 1, a[i] <= b[i]);
             assert_eq!(x.gt(y).bits() >> i & 1 == 1, a[i] > b[i]);

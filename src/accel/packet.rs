@@ -12,9 +12,9 @@
 //! visiting one child keeps the interval the single walk would give it.
 
 use super::lanes::{F4, M4};
-use super::traverse::{Mailbox, STACK, Tally, WalkRay, prefetch};
+use super::traverse::{STACK, Tally, prefetch};
 use super::tree::KdTree;
-use super::triangle::{RayPre, RayPre4, intersect4};
+use super::triangle::{RayPre4, intersect4};
 use super::{Hit, Ray};
 use std::mem::MaybeUninit;
 
@@ -67,6 +67,32 @@ pub(super) fn group(rays: &[Ray]) -> impl Iterator<Item = Run> + '_ {
     })
 }
 
+/// The packet's mailbox: the last triangles tested, hashed by index as the single-ray mailbox
+/// is, each with the lanes that tested it. A lane skips a triangle it tested already; testing
+/// one again could not change its result anyway (a miss within a limit misses within any
+/// smaller one, and a hit is the best hit already), so collisions cost time, never exactness.
+struct PacketMailbox([(u32, u32); 8]);
+
+impl PacketMailbox {
+    fn new() -> PacketMailbox {
+        PacketMailbox([(u32::MAX, 0); 8])
+    }
+
+    /// The lanes of `active` that have not tested `prim`; records them as having tested it.
+    #[inline]
+    fn untested(&mut self, prim: u32, active: u32) -> u32 {
+        let slot = &mut self.0[prim as usize & 7];
+        if slot.0 == prim {
+            let fresh = active & !slot.1;
+            slot.1 |= active;
+            fresh
+        } else {
+            *slot = (prim, active);
+            active
+        }
+    }
+}
+
 /// One lane's bit per set lane of `m`, lowest first.
 fn lanes_of(mut m: u32) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
@@ -95,29 +121,33 @@ impl KdTree {
             return hits;
         }
         // Lanes past `n` copy the last ray and start inactive.
-        let ray = |i: usize| &rays[i.min(n - 1)];
-        let walk: [WalkRay; LANES] = std::array::from_fn(|i| WalkRay::new(ray(i)));
-        let mut entry = [0.0f32; LANES];
-        let mut exit = [0.0f32; LANES];
-        let mut active = 0u32;
-        for i in 0..n {
-            if let Some((a, b)) = walk[i].clip(&self.bounds, t_max[i]) {
-                (entry[i], exit[i]) = (a, b);
-                active |= 1 << i;
-            }
+        let lane_rays: [Ray; LANES] = std::array::from_fn(|i| rays[i.min(n - 1)]);
+        let [ox, oy, oz, _] = F4::columns(lane_rays.map(|r| r.origin.extend(0.0).to_array()));
+        let [dx, dy, dz, _] = F4::columns(lane_rays.map(|r| r.dir.extend(1.0).to_array()));
+        let origin = [ox, oy, oz];
+        // `WalkRay`'s reciprocal and `Aabb::clip` lane by lane (no component is zero here).
+        let inv_dir = [dx, dy, dz].map(|d| F4::splat(1.0).div(d));
+        let limits = F4::new(std::array::from_fn(|i| t_max[i.min(n - 1)]));
+        let (mut entry, mut exit) = (F4::splat(0.0), limits);
+        let (lo, hi) = (self.bounds.min.to_array(), self.bounds.max.to_array());
+        for axis in 0..3 {
+            let near = F4::splat(lo[axis]).sub(origin[axis]).mul(inv_dir[axis]);
+            let far = F4::splat(hi[axis]).sub(origin[axis]).mul(inv_dir[axis]);
+            let swap = near.gt(far);
+            entry = entry.max_num(F4::select(swap, far, near));
+            exit = exit.min_num(F4::select(swap, near, far));
         }
+        let mut active = !entry.gt(exit).bits() & ((1 << n) - 1);
         if active == 0 {
             return hits;
         }
-        let origin: [F4; 3] = std::array::from_fn(|a| F4::new(walk.each(|w| w.origin[a])));
-        let inv_dir: [F4; 3] = std::array::from_fn(|a| F4::new(walk.each(|w| w.inv_dir[a])));
-        let pre = RayPre4::new(std::array::from_fn(|i| RayPre::new(ray(i))));
-        let mut mailbox = [Mailbox::new(); LANES];
-        let mut best: [f32; LANES] = std::array::from_fn(|i| t_max[i.min(n - 1)]);
-        let mut best_v = F4::new(best);
+        let pre = RayPre4::new(lane_rays);
+        let mut mailbox = PacketMailbox::new();
+        let mut best = limits.to_array();
+        let mut best_v = limits;
         // Lanes of an any-hit walk that have not hit yet.
         let mut open = active;
-        let (mut t_min, mut t_far) = (F4::new(entry), F4::new(exit));
+        let (mut t_min, mut t_far) = (entry, exit);
         let mut stack = [const { MaybeUninit::<(u32, u32, F4, F4)>::uninit() }; STACK];
         let mut sp = 0;
         let mut node = 0usize;
@@ -180,15 +210,12 @@ impl KdTree {
                 tally.leaf();
                 for &p in &self.prim_refs[nd.leaf_range()] {
                     let tri = &self.triangles[p as usize];
-                    let mut lanes = 0;
-                    for i in lanes_of(active) {
-                        if !mailbox[i].seen(p) {
-                            lanes |= 1 << i;
-                            tally.test();
-                        }
-                    }
+                    let lanes = mailbox.untested(p, active);
                     if lanes == 0 {
                         continue;
+                    }
+                    for _ in 0..lanes.count_ones() {
+                        tally.test();
                     }
                     let (hit, [t, b1, b2]) = intersect4(&pre, tri, best_v, lanes);
                     if hit == 0 {
@@ -228,17 +255,6 @@ impl KdTree {
             t_far = b;
         }
         hits
-    }
-}
-
-/// `from_fn` over the lanes' walk rays.
-trait Each {
-    fn each(&self, f: impl Fn(&WalkRay) -> f32) -> [f32; LANES];
-}
-
-impl Each for [WalkRay; LANES] {
-    fn each(&self, f: impl Fn(&WalkRay) -> f32) -> [f32; LANES] {
-        std::array::from_fn(|i| f(&self[i]))
     }
 }
 

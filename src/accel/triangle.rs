@@ -19,34 +19,27 @@ pub struct RayPre {
 }
 
 impl RayPre {
+    #[inline]
     pub fn new(ray: &Ray) -> RayPre {
         let d = ray.dir;
-        let a = d.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding of the projected triangle independent of the ray's direction sign.
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
+        let (kx, ky, kz) = shear_axes(d);
+        let [dx, dy, dz] = [kx, ky, kz].map(|k| match k {
+            0 => d.x,
+            1 => d.y,
+            _ => d.z,
+        });
+        let (sx, sy, sz) = (dx / dz, dy / dz, 1.0 / dz);
+        // The shear's rows are `e_kx - sx e_kz`, `e_ky - sy e_kz` and `sz e_kz`; its columns are
+        // therefore the unit vectors at `kx` and `ky` and `(-sx, -sy, sz)` at `kz`.
+        let cols = [Vec3A::X, Vec3A::Y, Vec3A::new(-sx, -sy, sz)];
+        let order = [kx, ky, kz];
+        let mut shear = [Vec3A::ZERO; 3];
+        for (col, &k) in cols.iter().zip(&order) {
+            shear[k] = *col;
         }
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let mut row_x = Vec3A::ZERO;
-        let mut row_y = Vec3A::ZERO;
-        let mut row_z = Vec3A::ZERO;
-        row_x[kx] = 1.0;
-        row_x[kz] = -sx;
-        row_y[ky] = 1.0;
-        row_y[kz] = -sy;
-        row_z[kz] = sz;
         RayPre {
             origin: ray.origin.into(),
-            shear: Mat3A::from_cols(row_x, row_y, row_z).transpose(),
+            shear: Mat3A::from_cols(shear[0], shear[1], shear[2]),
         }
     }
 }
@@ -103,16 +96,37 @@ pub(super) struct RayPre4 {
     origin: [F4; 3],
     /// `cols[c][r]`: row `r` of the shear's column `c`, per lane.
     cols: [[F4; 3]; 3],
-    lanes: [RayPre; 4],
+    rays: [Ray; 4],
 }
 
 impl RayPre4 {
-    pub(super) fn new(lanes: [RayPre; 4]) -> RayPre4 {
-        let per_lane = |f: &dyn Fn(&RayPre) -> f32| F4::new(std::array::from_fn(|i| f(&lanes[i])));
+    /// The shear of each ray exactly as `RayPre::new` builds it (the same axis choice and the
+    /// same three divisions per ray, four rays to a division instruction).
+    pub(super) fn new(rays: [Ray; 4]) -> RayPre4 {
+        let mut axes = [[0usize; 3]; 4];
+        let mut pick = [[0.0f32; 4]; 3];
+        for (i, r) in rays.iter().enumerate() {
+            let (kx, ky, kz) = shear_axes(r.dir);
+            axes[i] = [kx, ky, kz];
+            let d = r.dir.to_array();
+            (pick[0][i], pick[1][i], pick[2][i]) = (d[kx], d[ky], d[kz]);
+        }
+        let [dx, dy, dz] = pick.map(F4::new);
+        let sx = dx.div(dz).to_array();
+        let sy = dy.div(dz).to_array();
+        let sz = F4::splat(1.0).div(dz).to_array();
+        // Column `kx` is the unit x vector, column `ky` unit y, column `kz` (-sx, -sy, sz).
+        let mut cols = [[[0.0f32; 4]; 3]; 3];
+        for (i, [kx, ky, kz]) in axes.into_iter().enumerate() {
+            cols[kx][0][i] = 1.0;
+            cols[ky][1][i] = 1.0;
+            (cols[kz][0][i], cols[kz][1][i], cols[kz][2][i]) = (-sx[i], -sy[i], sz[i]);
+        }
+        let [ox, oy, oz, _] = F4::columns(rays.map(|r| r.origin.extend(0.0).to_array()));
         RayPre4 {
-            origin: [0, 1, 2].map(|r| per_lane(&|p| p.origin[r])),
-            cols: [0, 1, 2].map(|c| [0, 1, 2].map(|r| per_lane(&|p| p.shear.col(c)[r]))),
-            lanes,
+            origin: [ox, oy, oz],
+            cols: cols.map(|c| c.map(F4::new)),
+            rays,
         }
     }
 
@@ -128,6 +142,26 @@ impl RayPre4 {
                 .add(self.cols[1][r].mul(rel[1]))
                 .add(self.cols[2][r].mul(rel[2]))
         })
+    }
+}
+
+/// The shear's axes for a direction: `kz` its largest component, `kx` and `ky` the next two in
+/// cyclic order, swapped when `d[kz] < 0` so the projected winding does not depend on the sign.
+#[inline]
+fn shear_axes(d: Vec3) -> (usize, usize, usize) {
+    let a = d.abs();
+    let kz = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    if d[kz] < 0.0 {
+        (ky, kx, kz)
+    } else {
+        (kx, ky, kz)
     }
 }
 
@@ -177,7 +211,7 @@ pub(super) fn intersect4(
     if exact_zero != 0 {
         let limits = t_max.to_array();
         for i in (0..4).filter(|i| exact_zero >> i & 1 == 1) {
-            if let Some((t, b1, b2)) = intersect(&pre.lanes[i], tri, limits[i]) {
+            if let Some((t, b1, b2)) = intersect(&RayPre::new(&pre.rays[i]), tri, limits[i]) {
                 hit |= 1 << i;
                 [out[0][i], out[1][i], out[2][i]] = [t, b1, b2];
             }
@@ -218,6 +252,49 @@ mod tests {
     }
 
     #[test]
+    fn the_shear_is_the_papers_row_by_row() {
+        let mut rng = crate::accel::test_rng::Lcg(9);
+        for _ in 0..1000 {
+            let d = rng.v(2.0) - Vec3::ONE;
+            let pre = RayPre::new(&Ray::new(Vec3::ZERO, d));
+            // Woop et al.'s listing: kz the largest component, kx and ky the next two, swapped
+            // when d[kz] < 0; x = v[kx] - sx v[kz], y = v[ky] - sy v[kz], z = sz v[kz].
+            let a = d.abs();
+            let kz = if a.x >= a.y && a.x >= a.z {
+                0
+            } else if a.y >= a.z {
+                1
+            } else {
+                2
+            };
+            let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+            if d[kz] < 0.0 {
+                std::mem::swap(&mut kx, &mut ky);
+            }
+            let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+            let rows = pre.shear.transpose();
+            let expect = |k_one: Option<usize>, s: f32| {
+                let mut r = Vec3A::ZERO;
+                if let Some(k) = k_one {
+                    r[k] = 1.0;
+                }
+                r[kz] = s;
+                r
+            };
+            for (row, want) in [
+                (rows.x_axis, expect(Some(kx), -sx)),
+                (rows.y_axis, expect(Some(ky), -sy)),
+                (rows.z_axis, expect(None, sz)),
+            ] {
+                assert_eq!(
+                    row.to_array().map(f32::to_bits),
+                    want.to_array().map(f32::to_bits)
+                );
+            }
+        }
+    }
+
+    #[test]
     fn four_lanes_give_the_scalar_results_bit_for_bit() {
         let mut rng = crate::accel::test_rng::Lcg(3);
         let mut cases = 0;
@@ -253,7 +330,7 @@ mod tests {
                 _ => 1e-30,
             });
             let pres = rays.map(|r| RayPre::new(&r));
-            let pre4 = RayPre4::new(rays.map(|r| RayPre::new(&r)));
+            let pre4 = RayPre4::new(rays);
             let lanes = if k % 5 == 0 { 0b1011 } else { 0b1111 };
             let (hit, out) = intersect4(&pre4, &tri, F4::new(limits), lanes);
             for i in 0..4 {

@@ -5,10 +5,11 @@
 use super::camera::EyeCamera;
 use super::integrator::{Integrator, RayCounts};
 use super::sampling::pixel_sample;
-use crate::accel::Intersect;
+use crate::accel::{Intersect, LANES, Ray};
 use crate::output::Image;
 use glam::Vec3;
 use rayon::prelude::*;
+use smallvec::SmallVec;
 use std::cell::Cell;
 
 pub const TILE: usize = 16;
@@ -46,17 +47,42 @@ pub fn render_eye<A: Intersect>(
             let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
             let counts = Cell::new(RayCounts::default());
-            let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0));
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let seed = [(y * w + x) as u32, film.frame, film.eye_seed];
-                    let mut sum = Vec3::ZERO;
-                    for s in 0..film.spp {
-                        let o = pixel_sample(s, film.spp, seed);
-                        let (ray, t_max) = camera.ray(x as f32 + o.x, y as f32 + o.y);
-                        sum += integrator.radiance(&ray, t_max, &counts);
+            let tw = x1 - x0;
+            let mut pixels = vec![Vec3::ZERO; tw * (y1 - y0)];
+            // Pixels in 2x2 quads: each sample's four camera rays, and then their shadow rays,
+            // travel the tree as a packet. A pixel still sums its own samples in order.
+            for qy in (y0..y1).step_by(2) {
+                for qx in (x0..x1).step_by(2) {
+                    let mut quad: SmallVec<[(usize, usize); LANES]> = SmallVec::new();
+                    for (x, y) in [(qx, qy), (qx + 1, qy), (qx, qy + 1), (qx + 1, qy + 1)] {
+                        if x < x1 && y < y1 {
+                            quad.push((x, y));
+                        }
                     }
-                    pixels.push(sum / film.spp as f32);
+                    let mut sums = [Vec3::ZERO; LANES];
+                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+                    let mut limits = [0.0; LANES];
+                    let mut radiance = [Vec3::ZERO; LANES];
+                    for s in 0..film.spp {
+                        for (i, &(x, y)) in quad.iter().enumerate() {
+                            let seed = [(y * w + x) as u32, film.frame, film.eye_seed];
+                            let o = pixel_sample(s, film.spp, seed);
+                            (rays[i], limits[i]) = camera.ray(x as f32 + o.x, y as f32 + o.y);
+                        }
+                        let n = quad.len();
+                        integrator.radiance_packet(
+                            &rays[..n],
+                            &limits[..n],
+                            &counts,
+                            &mut radiance[..n],
+                        );
+                        for (sum, r) in sums.iter_mut().zip(&radiance[..n]) {
+                            *sum += *r;
+                        }
+                    }
+                    for (i, &(x, y)) in quad.iter().enumerate() {
+                        pixels[(y - y0) * tw + (x - x0)] = sums[i] / film.spp as f32;
+                    }
                 }
             }
             on_tile();

@@ -3,11 +3,12 @@
 //! refraction (exact Fresnel, total internal reflection) for smooth dielectrics, to `max_depth`.
 
 use super::shading::{self, ShadingModel, SurfacePoint, brdf, dielectric_fresnel, schlick};
-use crate::accel::{Hit, Intersect, Ray};
+use crate::accel::{Hit, Intersect, LANES, Ray};
 use crate::scene::light::{Light, LightKind};
 use crate::scene::material::{Material, Texture};
 use crate::scene::pose::Geometry;
 use glam::{Vec2, Vec3};
+use smallvec::SmallVec;
 use std::cell::Cell;
 
 #[derive(Clone, Copy, Debug)]
@@ -92,67 +93,236 @@ struct Shading {
     material: u32,
 }
 
+/// A hit's surface, as shading sees it.
+struct Surface<'m> {
+    sh: Shading,
+    mat: &'m Material,
+    point: SurfacePoint,
+    /// Direction to the viewer.
+    v: Vec3,
+    glass: bool,
+}
+
+/// A light that reaches a hit unless its shadow ray is blocked.
+struct LightQuery {
+    /// Index into the scene's lights.
+    light: usize,
+    shadow: Ray,
+    t_max: f32,
+    /// Unit direction to the light, `n . l`, and the irradiance arriving.
+    l: Vec3,
+    n_l: f32,
+    irradiance: Vec3,
+}
+
+/// A secondary ray a lane asks for, and the weight its radiance gets.
+#[derive(Clone, Copy)]
+struct Bounce {
+    dir: Vec3,
+    weight: Vec3,
+}
+
 impl<A: Intersect> Integrator<'_, A> {
     /// Radiance along a camera ray (depth 1).
     pub fn radiance(&self, ray: &Ray, t_max: f32, counts: &Cell<RayCounts>) -> Vec3 {
-        bump(counts, |c| c.primary += 1);
-        self.trace(ray, t_max, 1, counts)
+        let mut out = [Vec3::ZERO];
+        self.radiance_packet(&[*ray], &[t_max], counts, &mut out);
+        out[0]
     }
 
-    fn trace(&self, ray: &Ray, t_max: f32, depth: u32, counts: &Cell<RayCounts>) -> Vec3 {
-        let Some(hit) = self.scene.accel.closest_hit(ray, t_max) else {
-            return self.settings.background;
-        };
-        let sh = self.shading_point(ray, &hit);
-        let mat = &self.scene.materials[sh.material as usize];
-        let base = self.base_color(mat, &sh);
-        let v = -ray.dir;
-        let mut radiance = mat.emissive;
-        let glass = mat.transmission >= 0.5;
-        let surface = SurfacePoint {
-            base_color: base,
-            metallic: mat.metallic,
-            roughness: mat.roughness,
-        };
-        if !glass {
-            radiance += self.direct(&sh, &surface, v, counts);
+    /// Radiance along up to `LANES` camera rays (depth 1). The rays travel the tree as a packet,
+    /// and so do, level by level, the shadow rays of their hits to each light and their mirror
+    /// and refraction rays. Each ray's radiance is bit for bit what it would be alone: a lane adds
+    /// the same terms in the same order.
+    pub fn radiance_packet(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        counts: &Cell<RayCounts>,
+        out: &mut [Vec3],
+    ) {
+        bump(counts, |c| c.primary += rays.len() as u64);
+        self.trace(rays, t_max, 1, counts, out);
+    }
+
+    fn trace(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        depth: u32,
+        counts: &Cell<RayCounts>,
+        out: &mut [Vec3],
+    ) {
+        let n = rays.len();
+        assert!(n <= LANES && t_max.len() == n && out.len() == n);
+        let mut hits = [None; LANES];
+        self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
+        let surfaces: [Option<Surface>; LANES] =
+            std::array::from_fn(|i| hits[i].map(|h| self.surface(&rays[i], &h)));
+        let direct = self.direct_light(&surfaces, counts);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = match &surfaces[i] {
+                Some(s) if s.glass => s.mat.emissive,
+                Some(s) => s.mat.emissive + direct[i],
+                None => self.settings.background,
+            };
         }
         if depth >= self.settings.max_depth {
-            return radiance;
+            return;
         }
+        // Each lane's mirror ray and (glass) refraction ray, traced as two packets; a lane adds
+        // the reflection before the refraction, as WHITTED.md's order has it.
+        let mut bounces = [[None::<Bounce>; 2]; LANES];
+        for (i, s) in surfaces.iter().enumerate() {
+            if let Some(s) = s {
+                bounces[i] = self.bounces(&rays[i], s);
+            }
+        }
+        for kind in 0..2 {
+            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let mut lanes = [0usize; LANES];
+            let mut k = 0;
+            for (i, b) in bounces.iter().enumerate() {
+                if let (Some(b), Some(s)) = (b[kind], &surfaces[i]) {
+                    let sh = &s.sh;
+                    let side = if sh.ng.dot(b.dir) >= 0.0 {
+                        sh.ng
+                    } else {
+                        -sh.ng
+                    };
+                    (next[k], lanes[k]) = (Ray::new(offset_origin(sh.p, side), b.dir), i);
+                    k += 1;
+                }
+            }
+            if k == 0 {
+                continue;
+            }
+            bump(counts, |c| c.secondary += k as u64);
+            let mut incoming = [Vec3::ZERO; LANES];
+            let far = [f32::INFINITY; LANES];
+            self.trace(&next[..k], &far[..k], depth + 1, counts, &mut incoming[..k]);
+            for (&i, l) in lanes[..k].iter().zip(&incoming[..k]) {
+                let w = bounces[i][kind].expect("a traced bounce").weight;
+                out[i] += w * *l;
+            }
+        }
+    }
+
+    /// Direct light at each lane's surface: each light's shadow rays from all lanes travel as one
+    /// packet (rays towards one light from neighbouring hits); every lane adds its lights in
+    /// the scene's order.
+    fn direct_light(
+        &self,
+        surfaces: &[Option<Surface>; LANES],
+        counts: &Cell<RayCounts>,
+    ) -> [Vec3; LANES] {
+        let mut direct = [Vec3::ZERO; LANES];
+        let mut queries: SmallVec<[(usize, LightQuery); 2 * LANES]> = SmallVec::new();
+        for (lane, s) in surfaces.iter().enumerate() {
+            if let Some(s) = s {
+                queries.extend(self.light_queries(s).map(|q| (lane, q)));
+            }
+        }
+        if queries.is_empty() {
+            return direct;
+        }
+        bump(counts, |c| c.shadow += queries.len() as u64);
+        let mut shadow = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        let mut limits = [0.0; LANES];
+        let mut members = [0usize; LANES];
+        let mut blocked = [false; LANES];
+        for light in 0..self.scene.lights.len() {
+            let mut k = 0;
+            for (index, (_, q)) in queries.iter().enumerate() {
+                if q.light == light {
+                    (shadow[k], limits[k], members[k]) = (q.shadow, q.t_max, index);
+                    k += 1;
+                }
+            }
+            if k == 0 {
+                continue;
+            }
+            self.scene
+                .accel
+                .any_hits(&shadow[..k], &limits[..k], &mut blocked[..k]);
+            for (&index, &b) in members[..k].iter().zip(&blocked[..k]) {
+                let (lane, q) = &queries[index];
+                if !b && let Some(s) = &surfaces[*lane] {
+                    direct[*lane] += self.direct_term(s, q);
+                }
+            }
+        }
+        direct
+    }
+
+    /// The mirror ray (index 0) and the refraction ray (index 1) a surface asks for below
+    /// `max_depth`, with their weights: Fresnel-weighted reflection and refraction for glass
+    /// (none under total internal reflection), Schlick-weighted reflection for a smooth opaque
+    /// surface, nothing for a rough one.
+    fn bounces(&self, ray: &Ray, s: &Surface) -> [Option<Bounce>; 2] {
+        let (sh, mat, base, v) = (&s.sh, s.mat, s.point.base_color, s.v);
         let cos_i = sh.n.dot(v).clamp(0.0, 1.0);
         let reflect_dir = (ray.dir + 2.0 * cos_i * sh.n).normalize();
-        if glass {
+        if s.glass {
             let eta = if sh.front { 1.0 / mat.ior } else { mat.ior };
             let (f, cos_t) = dielectric_fresnel(cos_i, eta);
-            radiance += f * self.spawn(&sh, reflect_dir, depth, counts);
-            if let Some(cos_t) = cos_t {
-                let t_dir = (eta * ray.dir + (eta * cos_i - cos_t) * sh.n).normalize();
-                radiance += (1.0 - f) * base * self.spawn(&sh, t_dir, depth, counts);
-            }
+            let refraction = cos_t.map(|cos_t| Bounce {
+                dir: (eta * ray.dir + (eta * cos_i - cos_t) * sh.n).normalize(),
+                weight: (1.0 - f) * base,
+            });
+            let reflection = Bounce {
+                dir: reflect_dir,
+                weight: Vec3::splat(f),
+            };
+            [Some(reflection), refraction]
         } else if mat.roughness == 0.0 {
             let weight = (1.0 - mat.metallic) * schlick(Vec3::splat(0.04), cos_i)
                 + mat.metallic * shading::schlick(base, cos_i);
-            radiance += weight * self.spawn(&sh, reflect_dir, depth, counts);
+            [
+                Some(Bounce {
+                    dir: reflect_dir,
+                    weight,
+                }),
+                None,
+            ]
+        } else {
+            [None, None]
         }
-        radiance
     }
 
-    /// Traces a secondary ray leaving the surface in `dir`.
-    fn spawn(&self, sh: &Shading, dir: Vec3, depth: u32, counts: &Cell<RayCounts>) -> Vec3 {
-        let side = if sh.ng.dot(dir) >= 0.0 { sh.ng } else { -sh.ng };
-        let ray = Ray::new(offset_origin(sh.p, side), dir);
-        bump(counts, |c| c.secondary += 1);
-        self.trace(&ray, f32::INFINITY, depth + 1, counts)
+    fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'_> {
+        let sh = self.shading_point(ray, hit);
+        let mat = &self.scene.materials[sh.material as usize];
+        let point = SurfacePoint {
+            base_color: self.base_color(mat, &sh),
+            metallic: mat.metallic,
+            roughness: mat.roughness,
+        };
+        Surface {
+            sh,
+            mat,
+            point,
+            v: -ray.dir,
+            glass: mat.transmission >= 0.5,
+        }
     }
 
-    fn direct(&self, sh: &Shading, s: &SurfacePoint, v: Vec3, counts: &Cell<RayCounts>) -> Vec3 {
-        let mut sum = Vec3::ZERO;
-        if sh.n.dot(v) <= 0.0 {
-            return sum;
-        }
-        let origin = offset_origin(sh.p, sh.ng);
-        for light in self.scene.lights {
+    /// What an unblocked light adds at a surface.
+    fn direct_term(&self, s: &Surface, q: &LightQuery) -> Vec3 {
+        brdf(self.settings.shading, &s.point, s.sh.n, q.l, s.v) * q.n_l * q.irradiance
+    }
+
+    /// The lights that can reach a surface (none for glass, which takes no direct light), in
+    /// the scene's order, each with its shadow ray.
+    fn light_queries<'s>(&'s self, s: &'s Surface) -> impl Iterator<Item = LightQuery> + 's {
+        let (sh, v) = (&s.sh, s.v);
+        let lit = !s.glass && sh.n.dot(v) > 0.0;
+        let (lights, origin) = if lit {
+            (self.scene.lights, offset_origin(sh.p, sh.ng))
+        } else {
+            (&[][..], sh.p)
+        };
+        lights.iter().enumerate().filter_map(move |(index, light)| {
             let (l, irradiance, shadow) = match light.kind {
                 LightKind::Directional => {
                     let l = -light.direction;
@@ -173,19 +343,21 @@ impl<A: Intersect> Integrator<'_, A> {
             };
             let n_l = sh.n.dot(l);
             if n_l <= 0.0 || sh.ng.dot(l) <= 0.0 || irradiance == Vec3::ZERO {
-                continue;
+                return None;
             }
             let t_max = match light.kind {
                 LightKind::Directional => f32::INFINITY,
                 _ => 1.0 - SHADOW_EPSILON,
             };
-            bump(counts, |c| c.shadow += 1);
-            if self.scene.accel.any_hit(&shadow, t_max) {
-                continue;
-            }
-            sum += brdf(self.settings.shading, s, sh.n, l, v) * n_l * irradiance;
-        }
-        sum
+            Some(LightQuery {
+                light: index,
+                shadow,
+                t_max,
+                l,
+                n_l,
+                irradiance,
+            })
+        })
     }
 
     fn shading_point(&self, ray: &Ray, hit: &Hit) -> Shading {
