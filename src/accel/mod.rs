@@ -7,7 +7,8 @@
 //! shares), `build`, `binned` (with `bins`: the default), `sah` (the exact sweep) and `bounded`
 //! (the refit-friendly topology) are the builders, `tree` (the compact layout), `traverse` and
 //! `refit` (the two walks), `instances` (the two-level top), `update` (the per-frame policy),
-//! `stats`, `triangle` (the watertight ray-triangle test). Only what this file re-exports is
+//! `stats`, `triangle` (the watertight ray-triangle test), `packet` (up to four rays walking
+//! together) with `lanes` (its four-lane arithmetic), and `query` (the tree's `Intersect`). Only what this file re-exports is
 //! visible outside.
 
 mod aabb;
@@ -19,6 +20,7 @@ mod instances;
 mod lanes;
 mod packet;
 mod params;
+mod query;
 mod refit;
 mod sah;
 mod split;

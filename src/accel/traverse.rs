@@ -3,10 +3,9 @@
 //! returns at the first hit. Rays parallel to a split plane, starting on one, or with zero
 //! direction components are handled explicitly rather than through inf/NaN arithmetic.
 
-use super::packet::{self, Run};
 use super::tree::{KdTree, MAX_DEPTH};
 use super::triangle::{RayPre, intersect};
-use super::{Hit, Intersect, Ray};
+use super::{Hit, Ray};
 use glam::Vec3;
 use std::mem::MaybeUninit;
 
@@ -96,66 +95,6 @@ pub(super) trait Visit {
     fn inner(&mut self);
 }
 
-impl KdTree {
-    /// `closest_hit` with its work counted.
-    pub fn closest_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> Option<Hit> {
-        closest_hit(self, ray, t_max, c)
-    }
-
-    /// `any_hit` with its work counted.
-    pub fn any_hit_counted(&self, ray: &Ray, t_max: f32, c: &mut WalkCounts) -> bool {
-        any_hit(self, ray, t_max, c)
-    }
-
-    /// `closest_hits` with its work counted (a packet's node counts once for all its rays).
-    pub fn closest_hits_counted(
-        &self,
-        rays: &[Ray],
-        t_max: &[f32],
-        hits: &mut [Option<Hit>],
-        c: &mut WalkCounts,
-    ) {
-        self.packets::<_, false>(rays, t_max, c, |i, h| hits[i] = h);
-    }
-
-    /// `any_hits` with its work counted.
-    pub fn any_hits_counted(
-        &self,
-        rays: &[Ray],
-        t_max: &[f32],
-        occluded: &mut [bool],
-        c: &mut WalkCounts,
-    ) {
-        self.packets::<_, true>(rays, t_max, c, |i, h| occluded[i] = h.is_some());
-    }
-
-    /// Walks `rays` in packets where they share an octant, singly elsewhere; `out(i, hit)`.
-    fn packets<T: Tally, const ANY: bool>(
-        &self,
-        rays: &[Ray],
-        t_max: &[f32],
-        tally: &mut T,
-        mut out: impl FnMut(usize, Option<Hit>),
-    ) {
-        assert_eq!(rays.len(), t_max.len(), "one limit per ray");
-        for run in packet::group(rays) {
-            match run {
-                Run::Single(i) => {
-                    let mut v = LeafTests::<_, ANY>::new(self, &rays[i], t_max[i], tally);
-                    self.walk(&WalkRay::new(&rays[i]), t_max[i], &mut v);
-                    out(i, v.hit);
-                }
-                Run::Packet(a, b, oct) => {
-                    let hits = self.packet_walk::<_, ANY>(&rays[a..b], &t_max[a..b], oct, tally);
-                    for (k, h) in hits.into_iter().take(b - a).enumerate() {
-                        out(a + k, h);
-                    }
-                }
-            }
-        }
-    }
-}
-
 /// Asks the cache for a node the walk may visit next. The below child sits next to its parent;
 /// the above child is a subtree away and, on a tree larger than the cache, a miss the walk would
 /// otherwise wait for when it goes there (about half the time).
@@ -238,24 +177,6 @@ impl LeafWalk for KdTree {
                 t_far = t_plane;
             }
         }
-    }
-}
-
-impl Intersect for KdTree {
-    fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        closest_hit(self, ray, t_max, &mut NoTally)
-    }
-
-    fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
-        any_hit(self, ray, t_max, &mut NoTally)
-    }
-
-    fn closest_hits(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<Hit>]) {
-        self.packets::<_, false>(rays, t_max, &mut NoTally, |i, h| hits[i] = h);
-    }
-
-    fn any_hits(&self, rays: &[Ray], t_max: &[f32], occluded: &mut [bool]) {
-        self.packets::<_, true>(rays, t_max, &mut NoTally, |i, h| occluded[i] = h.is_some());
     }
 }
 
@@ -346,27 +267,35 @@ impl<T: Tally, const ANY: bool> Visit for LeafTests<'_, T, ANY> {
     }
 }
 
+/// One ray's walk: its closest hit (`ANY = false`) or the first hit found (`ANY = true`).
+pub(super) fn walk_one<const ANY: bool>(
+    tree: &impl LeafWalk,
+    ray: &Ray,
+    t_max: f32,
+    tally: &mut impl Tally,
+) -> Option<Hit> {
+    let mut v = LeafTests::<_, ANY>::new(tree, ray, t_max, tally);
+    tree.walk(&WalkRay::new(ray), t_max, &mut v);
+    v.hit
+}
+
 pub(super) fn closest_hit(
     tree: &impl LeafWalk,
     ray: &Ray,
     t_max: f32,
     tally: &mut impl Tally,
 ) -> Option<Hit> {
-    let mut v = LeafTests::<_, false>::new(tree, ray, t_max, tally);
-    tree.walk(&WalkRay::new(ray), t_max, &mut v);
-    v.hit
+    walk_one::<false>(tree, ray, t_max, tally)
 }
 
 pub(super) fn any_hit(tree: &impl LeafWalk, ray: &Ray, t_max: f32, tally: &mut impl Tally) -> bool {
-    let mut v = LeafTests::<_, true>::new(tree, ray, t_max, tally);
-    tree.walk(&WalkRay::new(ray), t_max, &mut v);
-    v.hit.is_some()
+    walk_one::<true>(tree, ray, t_max, tally).is_some()
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::test_rng::Lcg;
-    use super::super::{BruteForce, BuildParams, SplitMethod};
+    use super::super::{BruteForce, BuildParams, Intersect, SplitMethod};
     use super::*;
 
     fn soup(rng: &mut Lcg, n: usize) -> Vec<[Vec3; 3]> {
