@@ -6,7 +6,7 @@ use super::location::line_column;
 use super::output_spec::OutputSpec;
 use crate::accel::{SplitMethod, UpdateMode};
 use crate::error::{Error, Result};
-use crate::render::{Rig, ShadingModel};
+use crate::render::{EyeReuse, Rig, ShadingModel};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -63,6 +63,7 @@ pub struct RenderSection {
     pub background: [f32; 3],
     /// 0 = all cores.
     pub threads: usize,
+    pub eye_reuse: EyeReuse,
 }
 
 impl Default for RenderSection {
@@ -75,6 +76,7 @@ impl Default for RenderSection {
             shading: ShadingModel::CookTorrance,
             background: [0.0; 3],
             threads: 0,
+            eye_reuse: EyeReuse::Off,
         }
     }
 }

@@ -6,8 +6,8 @@ use super::LoadedPipeline;
 use super::outputs::StereoFrame;
 use crate::accel::{BuildParams, LogRow, Updater};
 use crate::render::{
-    EyeCamera, FilmParams, Integrator, RayCounts, RigParams, SceneView, TraceSettings, View,
-    render_eye,
+    EyeCamera, EyeReuse, FilmParams, Integrator, RayCounts, RigParams, SceneView, TraceSettings,
+    View, ViewFilm, render_views,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -112,20 +112,53 @@ impl<'p> FrameTracer<'p> {
             frame,
             views: Vec::new(),
         };
+        let film = |view: View| FilmParams {
+            width: spec.render.width as usize,
+            height: spec.render.height as usize,
+            spp: spec.render.spp,
+            frame,
+            eye_seed: view.seed(),
+        };
+        // Under `paired` the two eyes are traced in one pass (each gets half its time in the
+        // frame log); every other view, and every view under `off`, on its own.
+        let paired = spec.render.eye_reuse == EyeReuse::Paired
+            && views.contains(&View::LEFT)
+            && views.contains(&View::RIGHT);
+        let mut passes: Vec<Vec<View>> = Vec::new();
         for &view in views {
-            let camera = EyeCamera::new(camera_world, &rig, view);
-            let film = FilmParams {
-                width: spec.render.width as usize,
-                height: spec.render.height as usize,
-                spp: spec.render.spp,
-                frame,
-                eye_seed: view.seed(),
-            };
+            match view {
+                View::RIGHT if paired => {}
+                View::LEFT if paired => passes.push(vec![View::LEFT, View::RIGHT]),
+                _ => passes.push(vec![view]),
+            }
+        }
+        let mut images = Vec::new();
+        for pass in passes {
+            let cameras: Vec<EyeCamera> = pass
+                .iter()
+                .map(|&v| EyeCamera::new(camera_world, &rig, v))
+                .collect();
+            let films: Vec<ViewFilm> = cameras
+                .iter()
+                .zip(&pass)
+                .map(|(camera, &v)| ViewFilm {
+                    camera,
+                    film: film(v),
+                })
+                .collect();
             let t = Instant::now();
-            let (image, counts) = render_eye(&integrator, &camera, &film, &|| on_tile(view));
-            stats.view_seconds.push((view, t.elapsed().as_secs_f64()));
+            let (traced_images, counts) = render_views(&integrator, &films, &|k| on_tile(pass[k]));
+            let secs = t.elapsed().as_secs_f64() / pass.len() as f64;
             stats.rays.add(&counts);
-            traced.views.push((view, image));
+            for (view, image) in pass.into_iter().zip(traced_images) {
+                stats.view_seconds.push((view, secs));
+                images.push((view, image));
+            }
+        }
+        // The views in the order asked for.
+        for view in views {
+            let i = images.iter().position(|(v, _)| v == view).expect("traced");
+            traced.views.push(images.swap_remove(i));
         }
         (traced, stats)
     }

@@ -10,7 +10,7 @@ mod shading;
 mod view;
 
 pub use camera::{EyeCamera, Rig, RigParams};
-pub use frame::{FilmParams, render_eye, tile_count};
+pub use frame::{EyeReuse, FilmParams, ViewFilm, render_views, tile_count};
 pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings, offset_origin};
 pub use shading::ShadingModel;
 pub use view::{Eye, View};
