@@ -192,17 +192,16 @@ pub(super) trait LeafWalk {
 /// pieces reach (4-5 leaves on large meshes), and a ray crossing several of them would test it
 /// again in each. Skipping a retest is exact: a triangle that missed within the current limit
 /// misses within any later, smaller limit, and one that hit set the best hit already.
-#[derive(Clone, Copy)]
-pub(super) struct Mailbox([u32; 8]);
+struct Mailbox([u32; 8]);
 
 impl Mailbox {
-    pub(super) fn new() -> Mailbox {
+    fn new() -> Mailbox {
         Mailbox([u32::MAX; 8])
     }
 
     /// Whether `prim` was tested already; records it otherwise.
     #[inline]
-    pub(super) fn seen(&mut self, prim: u32) -> bool {
+    fn seen(&mut self, prim: u32) -> bool {
         let slot = &mut self.0[prim as usize & 7];
         let seen = *slot == prim;
         *slot = prim;
