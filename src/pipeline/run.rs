@@ -157,6 +157,10 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
                 format!("{:.6}", view_seconds[1]),
                 format!("{:.6}", view_seconds[2]),
                 row.sah_cost.map(|c| format!("{c:.3}")).unwrap_or_default(),
+                stats.rays.reused_primary.to_string(),
+                stats.rays.primary.to_string(),
+                stats.rays.reused_shadow.to_string(),
+                stats.rays.reused_radiance.to_string(),
             ]);
         }
         let t = Instant::now();
@@ -188,10 +192,26 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
 
 /// Columns of `frame-log.csv`: one row per frame and object, what the acceleration update did
 /// and why, and where the time went (`update_s` per object; `left_s`, `right_s`, `other_s`: the
-/// frame's tracing per view, repeated on each of its rows; `sah_cost` when a tree was built).
-pub const FRAME_LOG_COLUMNS: [&str; 10] = [
-    "frame", "object", "action", "reason", "pose_s", "update_s", "left_s", "right_s", "other_s",
+/// frame's tracing per view, repeated on each of its rows; `sah_cost` when a tree was built;
+/// `reused_samples`: camera samples that took another view's hit under `eye_reuse =
+/// "reproject"`, `traced_samples`: those that traced their camera ray, `reused_shadow_rays`:
+/// shadow answers taken with the reused hits, `reused_radiance_samples`: reused samples that
+/// took the radiance too under `"reproject-radiance"`; all per frame).
+pub const FRAME_LOG_COLUMNS: [&str; 14] = [
+    "frame",
+    "object",
+    "action",
+    "reason",
+    "pose_s",
+    "update_s",
+    "left_s",
+    "right_s",
+    "other_s",
     "sah_cost",
+    "reused_samples",
+    "traced_samples",
+    "reused_shadow_rays",
+    "reused_radiance_samples",
 ];
 
 /// The union of the views the outputs need for frame `k` of the range, each traced once, in

@@ -6,8 +6,8 @@ use super::LoadedPipeline;
 use super::outputs::StereoFrame;
 use crate::accel::{BuildParams, LogRow, Updater};
 use crate::render::{
-    EyeCamera, EyeReuse, FilmParams, Integrator, RayCounts, RigParams, SceneView, TraceSettings,
-    View, ViewFilm, render_views,
+    EyeCamera, EyeReuse, FilmParams, Integrator, RECORDED_LIGHTS, RayCounts, Reprojection,
+    RigParams, SceneView, SourceSample, TraceSettings, View, ViewFilm, ViewRole, render_views,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -120,10 +120,15 @@ impl<'p> FrameTracer<'p> {
             eye_seed: view.seed(),
         };
         // Under `paired` the two eyes are traced in one pass (each gets half its time in the
-        // frame log); every other view, and every view under `off`, on its own.
-        let paired = spec.render.eye_reuse == EyeReuse::Paired
+        // frame log); under `reproject` the left eye keeps its camera hits and every later view
+        // reuses them; every other view, and every view under `off`, on its own.
+        let reuse = spec.render.eye_reuse;
+        let paired = reuse == EyeReuse::Paired
             && views.contains(&View::LEFT)
             && views.contains(&View::RIGHT);
+        let reproject = reuse.reprojects() && views.contains(&View::LEFT);
+        // Radiance is only taken where every light's shadow answer is known (one bit each).
+        let take_radiance = reuse == EyeReuse::ReprojectRadiance && lights.len() <= RECORDED_LIGHTS;
         let mut passes: Vec<Vec<View>> = Vec::new();
         for &view in views {
             match view {
@@ -133,24 +138,44 @@ impl<'p> FrameTracer<'p> {
             }
         }
         let mut images = Vec::new();
+        let mut source: Option<(EyeCamera, Vec<Vec<SourceSample>>)> = None;
         for pass in passes {
             let cameras: Vec<EyeCamera> = pass
                 .iter()
                 .map(|&v| EyeCamera::new(camera_world, &rig, v))
                 .collect();
+            let t = Instant::now();
+            let reprojection = source.as_ref().map(|(source_camera, samples)| {
+                Reprojection::new(
+                    samples,
+                    source_camera,
+                    &cameras[0],
+                    (spec.render.width as usize, spec.render.height as usize),
+                    zfar.is_none(),
+                    take_radiance,
+                )
+            });
+            let role = match (&reprojection, pass[0]) {
+                (Some(r), _) => ViewRole::Target(r),
+                (None, View::LEFT) if reproject => ViewRole::Source,
+                _ => ViewRole::Plain,
+            };
             let films: Vec<ViewFilm> = cameras
                 .iter()
                 .zip(&pass)
                 .map(|(camera, &v)| ViewFilm {
                     camera,
                     film: film(v),
+                    role,
                 })
                 .collect();
-            let t = Instant::now();
-            let (traced_images, counts) = render_views(&integrator, &films, &|k| on_tile(pass[k]));
+            let rendered = render_views(&integrator, &films, &|k| on_tile(pass[k]));
             let secs = t.elapsed().as_secs_f64() / pass.len() as f64;
-            stats.rays.add(&counts);
-            for (view, image) in pass.into_iter().zip(traced_images) {
+            stats.rays.add(&rendered.counts);
+            if matches!(role, ViewRole::Source) {
+                source = Some((cameras[0].clone(), rendered.samples));
+            }
+            for (view, image) in pass.into_iter().zip(rendered.images) {
                 stats.view_seconds.push((view, secs));
                 images.push((view, image));
             }

@@ -65,6 +65,15 @@ pub(super) fn validate_values(
             ),
         ));
     }
+    // Reprojection looks for a sample's hit on its own film row and pixel window; a toe-in
+    // rig's vertical parallax and keystone move points between rows.
+    if r.eye_reuse.reprojects() && s.rig == Rig::ToeIn {
+        return Err(invalid(
+            &[N("render"), N("eye_reuse")],
+            "eye_reuse = \"reproject\" and \"reproject-radiance\" need an \"off-axis\", \"parallel\" or \"mono\" rig \
+             (toe-in has vertical parallax); use \"paired\" or \"off\" with toe-in",
+        ));
+    }
     let a = &p.accel.auto_threshold;
     if !(a.is_finite() && *a >= 1.0) {
         return Err(invalid(

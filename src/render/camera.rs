@@ -37,8 +37,9 @@ pub struct RigParams {
 /// One eye's pinhole camera.
 #[derive(Clone, Debug)]
 pub struct EyeCamera {
-    /// Rigid world transform of the rig's centre (the glTF camera node).
+    /// Rigid world transform of the rig's centre (the glTF camera node), and its inverse.
     world: Mat4,
+    to_rig: Mat4,
     /// Eye position on the rig's local X axis, metres.
     x_e: f32,
     /// Horizontal tangent shift of the frustum (off-axis only): `x_e / convergence`.
@@ -70,6 +71,7 @@ impl EyeCamera {
         };
         EyeCamera {
             world,
+            to_rig: world.inverse(),
             x_e,
             shift,
             toe,
@@ -107,10 +109,69 @@ impl EyeCamera {
         (Ray::new(start, dir / len), t_max)
     }
 
+    /// The projection of `project` and `project_direction` as one matrix: a world point (w = 1)
+    /// or direction (w = 0) maps to (X, Y, Z, W) with film position (X / W, Y / W), ahead of the
+    /// eye where W > 0 (W is the depth in the eye's frame). Equal to them up to rounding.
+    pub fn film_matrix(&self) -> Mat4 {
+        let (w, h) = (self.width, self.height);
+        // e -> (film_x * -e.z, film_y * -e.z, 0, -e.z) for e in the eye's (toed) frame.
+        let to_film = Mat4::from_cols_array(&[
+            0.5 * w / self.tan_x,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            -0.5 * h / self.tan_y,
+            0.0,
+            0.0,
+            -(self.shift / self.tan_x + 1.0) * 0.5 * w,
+            -0.5 * h,
+            0.0,
+            -1.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        ]);
+        to_film
+            * Mat4::from_mat3(self.toe.transpose())
+            * Mat4::from_translation(Vec3::new(-self.x_e, 0.0, 0.0))
+            * self.to_rig
+    }
+
+    /// Film position (pixels) of the point at infinity along a world direction, or `None` for a
+    /// direction that does not point ahead of the eye: where a ray that missed everything would
+    /// land on this eye's film.
+    pub fn project_direction(&self, dir: Vec3) -> Option<Vec2> {
+        let e = self.toe.transpose() * self.to_rig.transform_vector3(dir);
+        if e.z >= 0.0 {
+            return None;
+        }
+        Some(Vec2::new(
+            ((e.x / -e.z + self.shift) / self.tan_x + 1.0) * 0.5 * self.width,
+            (1.0 - (e.y / -e.z) / self.tan_y) * 0.5 * self.height,
+        ))
+    }
+
+    /// Depth of a world point in front of the rig, metres along its viewing axis (negative
+    /// behind it).
+    pub fn depth(&self, world_point: Vec3) -> f32 {
+        -self.to_rig.transform_point3(world_point).z
+    }
+
+    /// Depth of the near plane, metres: camera rays start there.
+    pub fn znear(&self) -> f32 {
+        self.znear
+    }
+
+    /// The point on the rig's viewing axis at `depth` metres.
+    pub fn axis_point(&self, depth: f32) -> Vec3 {
+        self.world.transform_point3(Vec3::new(0.0, 0.0, -depth))
+    }
+
     /// Film position (pixels) of a world point, or `None` behind the eye: the inverse of `ray`.
     pub fn project(&self, world_point: Vec3) -> Option<Vec2> {
-        let local =
-            self.world.inverse().transform_point3(world_point) - Vec3::new(self.x_e, 0.0, 0.0);
+        let local = self.to_rig.transform_point3(world_point) - Vec3::new(self.x_e, 0.0, 0.0);
         let e = self.toe.transpose() * local;
         if e.z >= 0.0 {
             return None;
@@ -211,6 +272,37 @@ mod tests {
                 "{rig:?} {px}"
             );
         }
+    }
+
+    #[test]
+    fn the_film_matrix_projects_as_project_does() {
+        for rig in [Rig::OffAxis, Rig::Parallel, Rig::ToeIn] {
+            let c = EyeCamera::new(world(), &params(rig), View::RIGHT);
+            let m = c.film_matrix();
+            for (px, py) in [(10.5, 20.25), (600.0, 300.0), (320.0, 180.0)] {
+                let (ray, _) = c.ray(px, py);
+                let p = m * ray.at(3.0).extend(1.0);
+                let q = glam::Vec2::new(p.x / p.w, p.y / p.w);
+                assert!(
+                    (q - c.project(ray.at(3.0)).unwrap()).length() < 1e-2,
+                    "{rig:?} {q}"
+                );
+                let d = m * ray.dir.extend(0.0);
+                let q = glam::Vec2::new(d.x / d.w, d.y / d.w);
+                assert!((q - glam::Vec2::new(px, py)).length() < 1e-2, "{rig:?} {q}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_direction_lands_where_far_points_along_it_do() {
+        let p = params(Rig::OffAxis);
+        let c = EyeCamera::new(world(), &p, View::RIGHT);
+        let (ray, _) = c.ray(200.25, 100.5);
+        let far = c.project(ray.at(1e5)).unwrap();
+        let inf = c.project_direction(ray.dir).unwrap();
+        assert!((far - inf).length() < 0.05, "{far} vs {inf}");
+        assert!(c.project_direction(-ray.dir).is_none());
     }
 
     #[test]

@@ -3,11 +3,12 @@
 //! depend only on the pixel's own samples, so tile order and thread count cannot change the image.
 
 use super::camera::EyeCamera;
-use super::integrator::{Integrator, RayCounts};
+use super::integrator::{Integrator, Primary, PrimaryRecord, RayCounts};
+use super::reproject::{PixelReuse, Reprojection, SourceSample};
 use super::sampling::pixel_sample;
 use crate::accel::{Intersect, LANES, Ray};
 use crate::output::Image;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use smallvec::SmallVec;
@@ -40,47 +41,91 @@ pub enum EyeReuse {
     /// same two of the right, whose rays share a scanline and most of their nodes. The images
     /// are bit-identical to `off` (every lane computes its own ray's radiance exactly).
     Paired,
+    /// The right eye (and every view after the left) takes the left eye's camera hits where
+    /// the reprojection rule allows (`render/reproject.rs`) and traces the rest; shading,
+    /// mirror and glass rays are the view's own. Approximate where the rule is wrong.
+    Reproject,
+    /// As `reproject`, and a pixel whose reprojected samples all hit rough surfaces (no mirror
+    /// or glass ray), in a window that agrees on every shadow, takes their mean radiance,
+    /// view-dependent highlights included: Adelson and Hodges' reuse of the colour. Cheaper,
+    /// and wrong by the change of the highlights between the eyes and by the uneven spread of
+    /// the reprojected samples over the pixel.
+    ReprojectRadiance,
 }
 
-/// A view to render: its camera and film (every view of one call shares size and spp).
+/// What a view does besides rendering itself.
+#[derive(Clone, Copy)]
+pub enum ViewRole<'a> {
+    Plain,
+    /// Keeps every camera sample's hit for other views (`Rendered::samples`).
+    Source,
+    /// Takes camera hits from a source view where the reprojection rule allows.
+    Target(&'a Reprojection),
+}
+
+impl EyeReuse {
+    /// Whether later views take the left eye's camera hits.
+    pub fn reprojects(self) -> bool {
+        matches!(self, EyeReuse::Reproject | EyeReuse::ReprojectRadiance)
+    }
+}
+
+/// A view to render: its camera, film and role (every view of one call shares size and spp).
 pub struct ViewFilm<'a> {
     pub camera: &'a EyeCamera,
     pub film: FilmParams,
+    pub role: ViewRole<'a>,
+}
+
+/// What `render_views` made.
+pub struct Rendered {
+    pub images: Vec<Image>,
+    /// The rays of all views.
+    pub counts: RayCounts,
+    /// A `Source` view's camera samples, per tile in tile order, each in pixel and sample
+    /// order.
+    pub samples: Vec<Vec<SourceSample>>,
 }
 
 /// Renders one view, or two together (the eyes under `EyeReuse::Paired`). `on_tile(v)` is
-/// called once per finished tile of view `v` (progress bars). Returns each view's image and the
-/// rays of all of them.
+/// called once per finished tile of view `v` (progress bars).
 pub fn render_views<A: Intersect>(
     integrator: &Integrator<'_, A>,
     views: &[ViewFilm],
     on_tile: &(dyn Fn(usize) + Sync),
-) -> (Vec<Image>, RayCounts) {
+) -> Rendered {
     let first = views.first().expect("at least one view").film;
     assert!(
         views.len() <= 2
             && views.iter().all(|v| {
                 (v.film.width, v.film.height, v.film.spp, v.film.frame)
                     == (first.width, first.height, first.spp, first.frame)
-            }),
-        "one or two views of one film size"
+            })
+            && (views.len() == 1 || views.iter().all(|v| matches!(v.role, ViewRole::Plain))),
+        "one or two plain views of one film size"
     );
     let (w, h, spp) = (first.width, first.height, first.spp);
     let tiles_x = w.div_ceil(TILE);
     // A packet's pixels: a 2x2 quad of one view, or a 2x1 pair of each of two views.
     let (block_w, block_h) = if views.len() == 1 { (2, 2) } else { (2, 1) };
+    let geometry = integrator.scene.geometry;
     // One tile per task: tiles differ in cost by orders of magnitude (sky against a glass
     // sphere), and rayon's default splitting left a core idle for about a tenth of each eye
     // waiting on the last large chunk.
-    let tiles: Vec<(Vec<Vec<Vec3>>, RayCounts)> = (0..tile_count(w, h))
+    let tiles: Vec<TileResult> = (0..tile_count(w, h))
         .into_par_iter()
         .with_max_len(1)
         .map(|t| {
             let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
             let counts = Cell::new(RayCounts::default());
+            let (mut radiance_taken, mut misses_taken) = (0u64, 0u64);
             let tw = x1 - x0;
             let mut pixels = vec![vec![Vec3::ZERO; tw * (y1 - y0)]; views.len()];
+            let mut samples = match views[0].role {
+                ViewRole::Source => Vec::with_capacity(tw * (y1 - y0) * spp as usize),
+                _ => Vec::new(),
+            };
             // Each sample's camera rays of a block, and then their shadow, mirror and
             // refraction rays, travel the tree as packets. A pixel still sums its own samples
             // in order, so the image does not depend on the grouping.
@@ -94,51 +139,127 @@ pub fn render_views<A: Intersect>(
                             }
                         }
                     }
-                    let n = lanes.len();
+                    // A target view decides per pixel what it may reuse.
+                    let reuse: SmallVec<[Option<PixelReuse>; LANES]> = lanes
+                        .iter()
+                        .map(|&(v, x, y)| match views[v].role {
+                            ViewRole::Target(r) => r.pixel(x, y),
+                            _ => None,
+                        })
+                        .collect();
+                    // Whole pixels known without a ray: where every source sample around missed
+                    // (the background), or, under `"reproject-radiance"`, the mean radiance of
+                    // the samples that landed there.
+                    let fixed: SmallVec<[Option<Vec3>; LANES]> = lanes
+                        .iter()
+                        .zip(&reuse)
+                        .map(|(&(v, x, y), p)| match (views[v].role, p) {
+                            (_, Some(p)) if p.misses() => {
+                                misses_taken += spp as u64;
+                                Some(integrator.settings.background)
+                            }
+                            (ViewRole::Target(r), Some(p)) => {
+                                let l = r.pixel_radiance(p, (x, y));
+                                radiance_taken += if l.is_some() { spp as u64 } else { 0 };
+                                l
+                            }
+                            _ => None,
+                        })
+                        .collect();
                     let mut sums = [Vec3::ZERO; LANES];
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
                     let mut limits = [0.0; LANES];
+                    let mut films = [Vec2::ZERO; LANES];
                     let mut radiance = [Vec3::ZERO; LANES];
+                    let mut records = [PrimaryRecord::NONE; LANES];
+                    let mut known = [None; LANES];
                     for s in 0..spp {
+                        // The lanes that need the integrator, packed to the front.
+                        let mut m = 0;
+                        let mut slot = [usize::MAX; LANES];
                         for (i, &(v, x, y)) in lanes.iter().enumerate() {
+                            if fixed[i].is_some() {
+                                continue;
+                            }
                             let film = &views[v].film;
                             let seed = [(y * w + x) as u32, film.frame, film.eye_seed];
                             let o = pixel_sample(s, spp, seed);
-                            (rays[i], limits[i]) =
-                                views[v].camera.ray(x as f32 + o.x, y as f32 + o.y);
+                            let f = Vec2::new(x as f32 + o.x, y as f32 + o.y);
+                            let (ray, limit) = views[v].camera.ray(f.x, f.y);
+                            let hit = reuse[i]
+                                .as_ref()
+                                .and_then(|r| r.verify(&ray, limit, geometry));
+                            (rays[m], limits[m], films[m], known[m]) = (ray, limit, f, hit);
+                            slot[m] = i;
+                            m += 1;
                         }
+                        if m == 0 {
+                            continue;
+                        }
+                        let primary = match views[0].role {
+                            ViewRole::Plain => Primary::Trace,
+                            ViewRole::Source => Primary::Record(&mut records[..m]),
+                            ViewRole::Target(_) => Primary::Known(&known[..m]),
+                        };
                         integrator.radiance_packet(
-                            &rays[..n],
-                            &limits[..n],
+                            &rays[..m],
+                            &limits[..m],
+                            primary,
                             &counts,
-                            &mut radiance[..n],
+                            &mut radiance[..m],
                         );
-                        for (sum, r) in sums.iter_mut().zip(&radiance[..n]) {
-                            *sum += *r;
+                        for (&i, r) in slot[..m].iter().zip(&radiance[..m]) {
+                            sums[i] += *r;
+                        }
+                        if matches!(views[0].role, ViewRole::Source) {
+                            samples.extend((0..m).map(|k| {
+                                SourceSample::new(films[k], &rays[k], &records[k], radiance[k])
+                            }));
                         }
                     }
                     for (i, &(v, x, y)) in lanes.iter().enumerate() {
-                        pixels[v][(y - y0) * tw + (x - x0)] = sums[i] / spp as f32;
+                        pixels[v][(y - y0) * tw + (x - x0)] =
+                            fixed[i].unwrap_or(sums[i] / spp as f32);
                     }
                 }
             }
             for v in 0..views.len() {
                 on_tile(v);
             }
-            (pixels, counts.get())
+            let mut counts = counts.get();
+            counts.reused_primary += radiance_taken + misses_taken;
+            counts.reused_radiance += radiance_taken;
+            TileResult {
+                pixels,
+                counts,
+                samples,
+            }
         })
         .collect();
     let mut images: Vec<Image> = views.iter().map(|_| Image::new(w, h)).collect();
     let mut counts = RayCounts::default();
-    for (t, (pixels, c)) in tiles.into_iter().enumerate() {
+    let mut samples = Vec::new();
+    for (t, tile) in tiles.into_iter().enumerate() {
         let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
         let tw = (x0 + TILE).min(w) - x0;
-        for (image, view_pixels) in images.iter_mut().zip(pixels) {
+        for (image, view_pixels) in images.iter_mut().zip(tile.pixels) {
             for (i, p) in view_pixels.into_iter().enumerate() {
                 image.set(x0 + i % tw, y0 + i / tw, p);
             }
         }
-        counts.add(&c);
+        counts.add(&tile.counts);
+        samples.push(tile.samples);
     }
-    (images, counts)
+    Rendered {
+        images,
+        counts,
+        samples,
+    }
+}
+
+/// One tile's pixels per view, its rays and (for a source view) its samples.
+struct TileResult {
+    pixels: Vec<Vec<Vec3>>,
+    counts: RayCounts,
+    samples: Vec<SourceSample>,
 }

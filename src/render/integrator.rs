@@ -24,6 +24,12 @@ pub struct RayCounts {
     pub primary: u64,
     pub secondary: u64,
     pub shadow: u64,
+    /// Camera rays of a view whose primary hit came from another view (`eye_reuse =
+    /// "reproject"`), and shadow rays whose answer came with it: not traced, so not counted above.
+    pub reused_primary: u64,
+    pub reused_shadow: u64,
+    /// Camera samples that took another view's radiance as well (`"reproject-radiance"`).
+    pub reused_radiance: u64,
 }
 
 impl RayCounts {
@@ -35,6 +41,9 @@ impl RayCounts {
         self.primary += o.primary;
         self.secondary += o.secondary;
         self.shadow += o.shadow;
+        self.reused_primary += o.reused_primary;
+        self.reused_shadow += o.reused_shadow;
+        self.reused_radiance += o.reused_radiance;
     }
 }
 
@@ -115,6 +124,54 @@ struct LightQuery {
     irradiance: Vec3,
 }
 
+/// Shadow results are kept for the first 32 lights (one bit each); later lights are always traced.
+pub const RECORDED_LIGHTS: usize = 32;
+
+/// What a view's camera ray found, for another view to reuse (`eye_reuse = "reproject"`).
+#[derive(Clone, Copy, Debug)]
+pub struct PrimaryRecord {
+    pub hit: Option<Hit>,
+    /// The hit point (barycentric, as shading computed it).
+    pub point: Vec3,
+    /// Lights (bit i: light i) whose shadow ray from the hit was traced and reached the light,
+    /// and those whose shadow ray was blocked.
+    pub lit: u32,
+    pub shadowed: u32,
+    /// The width of the surface's highlight lobe (GGX alpha = roughness^2) where its radiance
+    /// is emission and direct light alone (no mirror or glass ray), else negative: another
+    /// view may take the radiance where its view direction differs by a small part of that.
+    pub lobe: f32,
+}
+
+impl PrimaryRecord {
+    pub const NONE: PrimaryRecord = PrimaryRecord {
+        hit: None,
+        point: Vec3::ZERO,
+        lit: 0,
+        shadowed: 0,
+        lobe: -1.0,
+    };
+}
+
+/// A camera ray's primary hit taken from another view, with the shadow answers that come with
+/// it: lights in `lit` reach the hit, lights in `shadowed` do not, the others are traced.
+#[derive(Clone, Copy, Debug)]
+pub struct KnownHit {
+    pub hit: Hit,
+    pub lit: u32,
+    pub shadowed: u32,
+}
+
+/// What a packet's camera rays bring besides themselves.
+pub enum Primary<'a> {
+    /// Trace every lane.
+    Trace,
+    /// Trace every lane and write what it found.
+    Record(&'a mut [PrimaryRecord]),
+    /// Lanes with a known hit skip their camera ray and their known shadow rays.
+    Known(&'a [Option<KnownHit>]),
+}
+
 /// A secondary ray a lane asks for, and the weight its radiance gets.
 #[derive(Clone, Copy)]
 struct Bounce {
@@ -126,23 +183,64 @@ impl<A: Intersect> Integrator<'_, A> {
     /// Radiance along a camera ray (depth 1).
     pub fn radiance(&self, ray: &Ray, t_max: f32, counts: &Cell<RayCounts>) -> Vec3 {
         let mut out = [Vec3::ZERO];
-        self.radiance_packet(&[*ray], &[t_max], counts, &mut out);
+        self.radiance_packet(&[*ray], &[t_max], Primary::Trace, counts, &mut out);
         out[0]
     }
 
     /// Radiance along up to `LANES` camera rays (depth 1). The rays travel the tree as a packet,
     /// and so do, level by level, the shadow rays of their hits to each light and their mirror
     /// and refraction rays. Each ray's radiance is bit for bit what it would be alone: a lane adds
-    /// the same terms in the same order.
+    /// the same terms in the same order. `primary` says which camera hits are already known
+    /// (and then only the unknown lanes are traced) or asks for a record of what was found.
     pub fn radiance_packet(
         &self,
         rays: &[Ray],
         t_max: &[f32],
+        mut primary: Primary,
         counts: &Cell<RayCounts>,
         out: &mut [Vec3],
     ) {
-        bump(counts, |c| c.primary += rays.len() as u64);
-        self.trace(rays, t_max, 1, counts, out);
+        let n = rays.len();
+        assert!(n <= LANES && t_max.len() == n && out.len() == n);
+        let mut hits = [None; LANES];
+        let mut known = [(0u32, 0u32); LANES];
+        if let Primary::Known(k) = primary {
+            // Trace the lanes without a known hit as one (smaller) packet.
+            let mut lanes = [0usize; LANES];
+            let mut sub_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let mut sub_t = [0.0; LANES];
+            let mut m = 0;
+            for (i, k) in k[..n].iter().enumerate() {
+                match k {
+                    Some(k) => (hits[i], known[i]) = (Some(k.hit), (k.lit, k.shadowed)),
+                    None => {
+                        (lanes[m], sub_rays[m], sub_t[m]) = (i, rays[i], t_max[i]);
+                        m += 1;
+                    }
+                }
+            }
+            let mut sub_hits = [None; LANES];
+            if m > 0 {
+                self.scene
+                    .accel
+                    .closest_hits(&sub_rays[..m], &sub_t[..m], &mut sub_hits[..m]);
+            }
+            for (&i, h) in lanes[..m].iter().zip(sub_hits) {
+                hits[i] = h;
+            }
+            bump(counts, |c| {
+                c.primary += m as u64;
+                c.reused_primary += (n - m) as u64;
+            });
+        } else {
+            bump(counts, |c| c.primary += n as u64);
+            self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
+        }
+        let record = match &mut primary {
+            Primary::Record(r) => Some(&mut r[..n]),
+            _ => None,
+        };
+        self.shade(rays, &hits[..n], &known, 1, record, counts, out);
     }
 
     fn trace(
@@ -157,9 +255,45 @@ impl<A: Intersect> Integrator<'_, A> {
         assert!(n <= LANES && t_max.len() == n && out.len() == n);
         let mut hits = [None; LANES];
         self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
-        let surfaces: [Option<Surface>; LANES] =
-            std::array::from_fn(|i| hits[i].map(|h| self.surface(&rays[i], &h)));
-        let direct = self.direct_light(&surfaces, counts);
+        self.shade(rays, &hits[..n], &[(0, 0); LANES], depth, None, counts, out);
+    }
+
+    /// Radiance of each lane from its hit (`None`: the background), recursing below
+    /// `max_depth`. `known[i]` holds lane i's shadow answers already known (lit, shadowed).
+    #[allow(clippy::too_many_arguments)]
+    fn shade(
+        &self,
+        rays: &[Ray],
+        hits: &[Option<Hit>],
+        known: &[(u32, u32); LANES],
+        depth: u32,
+        record: Option<&mut [PrimaryRecord]>,
+        counts: &Cell<RayCounts>,
+        out: &mut [Vec3],
+    ) {
+        let surfaces: [Option<Surface>; LANES] = std::array::from_fn(|i| {
+            hits.get(i)
+                .copied()
+                .flatten()
+                .map(|h| self.surface(&rays[i], &h))
+        });
+        let (direct, shadows) = self.direct_light(&surfaces, known, counts);
+        if let Some(record) = record {
+            for (i, r) in record.iter_mut().enumerate() {
+                *r = PrimaryRecord {
+                    hit: hits[i],
+                    point: surfaces[i].as_ref().map_or(Vec3::ZERO, |s| s.sh.p),
+                    lit: shadows[i].0,
+                    shadowed: shadows[i].1,
+                    lobe: match &surfaces[i] {
+                        Some(s) if !s.glass && s.mat.roughness != 0.0 => {
+                            s.mat.roughness * s.mat.roughness
+                        }
+                        _ => -1.0,
+                    },
+                };
+            }
+        }
         for (i, o) in out.iter_mut().enumerate() {
             *o = match &surfaces[i] {
                 Some(s) if s.glass => s.mat.emissive,
@@ -210,13 +344,16 @@ impl<A: Intersect> Integrator<'_, A> {
 
     /// Direct light at each lane's surface: each light's shadow rays from all lanes travel as one
     /// packet (rays towards one light from neighbouring hits); every lane adds its lights in
-    /// the scene's order.
+    /// the scene's order. A shadow answer in `known` (lit, shadowed bits per lane) is used
+    /// instead of its ray. Returns each lane's direct light and its shadow answers as bits.
     fn direct_light(
         &self,
         surfaces: &[Option<Surface>; LANES],
+        known: &[(u32, u32); LANES],
         counts: &Cell<RayCounts>,
-    ) -> [Vec3; LANES] {
+    ) -> ([Vec3; LANES], [(u32, u32); LANES]) {
         let mut direct = [Vec3::ZERO; LANES];
+        let mut answers = [(0u32, 0u32); LANES];
         let mut queries: SmallVec<[(usize, LightQuery); 2 * LANES]> = SmallVec::new();
         for (lane, s) in surfaces.iter().enumerate() {
             if let Some(s) = s {
@@ -224,35 +361,69 @@ impl<A: Intersect> Integrator<'_, A> {
             }
         }
         if queries.is_empty() {
-            return direct;
+            return (direct, answers);
         }
-        bump(counts, |c| c.shadow += queries.len() as u64);
         let mut shadow = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
         let mut limits = [0.0; LANES];
-        let mut members = [0usize; LANES];
+        let mut traced = [0usize; LANES];
         let mut blocked = [false; LANES];
+        let (mut n_traced, mut n_known) = (0u64, 0u64);
         for light in 0..self.scene.lights.len() {
+            let bit = if light < RECORDED_LIGHTS {
+                1u32 << light
+            } else {
+                0
+            };
+            // This light's queries in lane order, each answered by a known bit or by a ray.
+            let mut members: SmallVec<[(usize, Option<bool>); LANES]> = SmallVec::new();
             let mut k = 0;
-            for (index, (_, q)) in queries.iter().enumerate() {
-                if q.light == light {
-                    (shadow[k], limits[k], members[k]) = (q.shadow, q.t_max, index);
-                    k += 1;
+            for (index, (lane, q)) in queries.iter().enumerate() {
+                if q.light != light {
+                    continue;
                 }
+                let (lit, shadowed) = known[*lane];
+                let answer = if lit & bit != 0 {
+                    Some(false)
+                } else if shadowed & bit != 0 {
+                    Some(true)
+                } else {
+                    (shadow[k], limits[k], traced[k]) = (q.shadow, q.t_max, members.len());
+                    k += 1;
+                    None
+                };
+                members.push((index, answer));
             }
-            if k == 0 {
+            if members.is_empty() {
                 continue;
             }
-            self.scene
-                .accel
-                .any_hits(&shadow[..k], &limits[..k], &mut blocked[..k]);
-            for (&index, &b) in members[..k].iter().zip(&blocked[..k]) {
+            if k > 0 {
+                self.scene
+                    .accel
+                    .any_hits(&shadow[..k], &limits[..k], &mut blocked[..k]);
+                for (&m, &b) in traced[..k].iter().zip(&blocked[..k]) {
+                    members[m].1 = Some(b);
+                }
+            }
+            n_traced += k as u64;
+            n_known += (members.len() - k) as u64;
+            for (index, b) in members {
                 let (lane, q) = &queries[index];
-                if !b && let Some(s) = &surfaces[*lane] {
-                    direct[*lane] += self.direct_term(s, q);
+                let b = b.expect("every query answered");
+                if b {
+                    answers[*lane].1 |= bit;
+                } else {
+                    answers[*lane].0 |= bit;
+                    if let Some(s) = &surfaces[*lane] {
+                        direct[*lane] += self.direct_term(s, q);
+                    }
                 }
             }
         }
-        direct
+        bump(counts, |c| {
+            c.shadow += n_traced;
+            c.reused_shadow += n_known;
+        });
+        (direct, answers)
     }
 
     /// The mirror ray (index 0) and the refraction ray (index 1) a surface asks for below

@@ -5,12 +5,16 @@
 mod camera;
 mod frame;
 mod integrator;
+mod reproject;
 mod sampling;
 mod shading;
 mod view;
 
 pub use camera::{EyeCamera, Rig, RigParams};
-pub use frame::{EyeReuse, FilmParams, ViewFilm, render_views, tile_count};
-pub use integrator::{Integrator, RayCounts, SceneView, TraceSettings, offset_origin};
+pub use frame::{EyeReuse, FilmParams, Rendered, ViewFilm, ViewRole, render_views, tile_count};
+pub use integrator::{
+    Integrator, RECORDED_LIGHTS, RayCounts, SceneView, TraceSettings, offset_origin,
+};
+pub use reproject::{Reprojection, SourceSample};
 pub use shading::ShadingModel;
 pub use view::{Eye, View};

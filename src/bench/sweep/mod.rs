@@ -19,7 +19,7 @@ use crate::compare::{Planes, Thresholds, compare};
 use crate::error::{Error, Result};
 use crate::output::Image;
 use crate::pipeline::{FrameStats, FrameTracer, LoadedPipeline, parse_frame_range};
-use crate::render::View;
+use crate::render::{EyeReuse, View};
 use results::write_files;
 use std::path::PathBuf;
 
@@ -33,6 +33,7 @@ const SPP: &str = "render.spp";
 const DEPTH: &str = "render.max_depth";
 const SPLIT: &str = "accel.split";
 const UPDATE: &str = "accel.update";
+const EYE_REUSE: &str = "render.eye_reuse";
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct SweepOptions {
@@ -98,13 +99,25 @@ pub fn parse_sweep(arg: &str) -> Result<(String, Vec<String>), String> {
 fn reference_overrides(combo: &[(String, String)], spp: u32, depth: u32) -> Vec<(String, String)> {
     let mut r: Vec<(String, String)> = combo
         .iter()
-        .filter(|(k, _)| ![SPP, DEPTH, SPLIT, UPDATE].contains(&k.as_str()))
+        .filter(|(k, _)| ![SPP, DEPTH, SPLIT, UPDATE, EYE_REUSE].contains(&k.as_str()))
         .cloned()
         .collect();
     r.push((SPP.into(), spp.to_string()));
     r.push((DEPTH.into(), depth.to_string()));
     r.push((SPLIT.into(), "sah".into()));
     r.push((UPDATE.into(), "rebuild".into()));
+    r.push((EYE_REUSE.into(), "off".into()));
+    r
+}
+
+/// The overrides of a combination's full trace: the same with every view traced in full.
+fn full_trace_overrides(combo: &[(String, String)]) -> Vec<(String, String)> {
+    let mut r: Vec<(String, String)> = combo
+        .iter()
+        .filter(|(k, _)| k != EYE_REUSE)
+        .cloned()
+        .collect();
+    r.push((EYE_REUSE.into(), "off".into()));
     r
 }
 
@@ -168,22 +181,15 @@ pub fn sweep(
             .unwrap_or(8)
     });
 
-    // One high-quality render per distinct reference, kept for every combination that uses it.
-    let mut references: Vec<(Overrides, Vec<FrameViews>)> = Vec::new();
-    // Per combination, the index of its reference.
-    let mut reference_of = Vec::with_capacity(combos.len());
-    for c in &combos {
-        let key = reference_overrides(c, ref_spp, ref_depth);
-        if let Some(i) = references.iter().position(|(k, _)| *k == key) {
-            reference_of.push(i);
-            continue;
+    // One high-quality render per distinct reference, kept for every combination that uses it;
+    // likewise one full trace (`eye_reuse = "off"`) per combination that reuses eyes.
+    let mut renders: Vec<(Overrides, Vec<FrameViews>)> = Vec::new();
+    let mut render_once = |key: Overrides, what: String| -> Result<usize> {
+        if let Some(i) = renders.iter().position(|(k, _)| *k == key) {
+            return Ok(i);
         }
-        reference_of.push(references.len());
         let rp = base.with_overrides(&key)?;
-        progress(&format!(
-            "reference {} ({ref_spp} spp, depth {ref_depth})",
-            describe(&key)
-        ));
+        progress(&format!("{what} {}", describe(&key)));
         let mut planes = Vec::new();
         trace_frames(&rp, frames, |_, views, _| {
             planes.push(
@@ -193,8 +199,24 @@ pub fn sweep(
                     .collect(),
             )
         });
-        references.push((key, planes));
+        renders.push((key, planes));
+        Ok(renders.len() - 1)
+    };
+    // Per combination, the index of its reference and of its full trace (`None`: itself).
+    let mut reference_of = Vec::with_capacity(combos.len());
+    let mut full_of = Vec::with_capacity(combos.len());
+    for (c, p) in combos.iter().zip(&pipelines) {
+        reference_of.push(render_once(
+            reference_overrides(c, ref_spp, ref_depth),
+            format!("reference ({ref_spp} spp, depth {ref_depth})"),
+        )?);
+        full_of.push(if p.spec.render.eye_reuse == EyeReuse::Off {
+            None
+        } else {
+            Some(render_once(full_trace_overrides(c), "full trace".into())?)
+        });
     }
+    let references = renders;
 
     let thresholds = Thresholds {
         fail: opts.threshold,
@@ -208,6 +230,7 @@ pub fn sweep(
     for r in 0..opts.repeat.max(1) {
         for (ci, (c, p)) in combos.iter().zip(&pipelines).enumerate() {
             let reference = &references[reference_of[ci]].1;
+            let full = full_of[ci].map(|i| &references[i].1);
             let s = &mut samples[ci];
             memory::reset_peak();
             trace_frames(p, frames, |k, views, stats| {
@@ -216,17 +239,24 @@ pub fn sweep(
                 s.frame_s[k]
                     .push(stats.pose_seconds + stats.update_seconds() + stats.trace_seconds());
                 s.rays[k] = stats.rays.total();
+                for (view, secs) in &stats.view_seconds {
+                    match *view {
+                        View::LEFT => s.left_s[k].push(*secs),
+                        View::RIGHT => s.right_s[k].push(*secs),
+                        _ => {}
+                    }
+                }
                 if r == 0 {
                     s.eyes[k] = views
                         .iter()
                         .map(|(view, img)| {
-                            let reference = reference[k]
-                                .iter()
-                                .find(|(v, _)| v == view)
-                                .map(|(_, planes)| planes)
-                                .expect("a combination traces the views of its reference");
-                            let c = compare(&Planes::from_image(img), reference, &thresholds);
-                            (view.name(), EyeError::from(&c))
+                            let ours = Planes::from_image(img);
+                            let c = compare(&ours, view_of(&reference[k], view), &thresholds);
+                            let f = match full {
+                                Some(full) => compare(&ours, view_of(&full[k], view), &thresholds),
+                                None => compare(&ours, &ours, &thresholds),
+                            };
+                            (view.name(), EyeError::from(&c, &f))
                         })
                         .collect();
                 }
@@ -256,6 +286,8 @@ struct Samples {
     update_s: Vec<Vec<f64>>,
     trace_s: Vec<Vec<f64>>,
     frame_s: Vec<Vec<f64>>,
+    left_s: Vec<Vec<f64>>,
+    right_s: Vec<Vec<f64>>,
     rays: Vec<u64>,
     eyes: Vec<Vec<(String, EyeError)>>,
     peak: Option<usize>,
@@ -267,6 +299,8 @@ impl Samples {
             update_s: vec![Vec::new(); frames],
             trace_s: vec![Vec::new(); frames],
             frame_s: vec![Vec::new(); frames],
+            left_s: vec![Vec::new(); frames],
+            right_s: vec![Vec::new(); frames],
             rays: vec![0; frames],
             eyes: vec![Vec::new(); frames],
             peak: None,
@@ -286,6 +320,8 @@ impl Samples {
                     .fold(f64::INFINITY, f64::min),
                 frame_s_max: self.frame_s[k].iter().copied().fold(0.0, f64::max),
                 rays: self.rays[k],
+                left_s: median_or_zero(&self.left_s[k]),
+                right_s: median_or_zero(&self.right_s[k]),
                 eyes,
             })
             .collect();
@@ -295,6 +331,19 @@ impl Samples {
             peak_bytes: self.peak,
         }
     }
+}
+
+/// One view of a frame another render traced.
+fn view_of<'a>(frame: &'a FrameViews, view: &View) -> &'a Planes {
+    frame
+        .iter()
+        .find(|(v, _)| v == view)
+        .map(|(_, planes)| planes)
+        .expect("a combination traces the views of its reference")
+}
+
+fn median_or_zero(v: &[f64]) -> f64 {
+    if v.is_empty() { 0.0 } else { median(v) }
 }
 
 fn describe(overrides: &[(String, String)]) -> String {
@@ -357,6 +406,19 @@ mod tests {
         assert!(r.contains(&("render.spp".into(), "256".into())));
         assert!(r.contains(&("render.max_depth".into(), "12".into())));
         assert!(r.contains(&("accel.update".into(), "rebuild".into())));
-        assert_eq!(r.len(), 5);
+        assert!(r.contains(&("render.eye_reuse".into(), "off".into())));
+        assert_eq!(r.len(), 6);
+        let with_reuse = vec![
+            ("render.eye_reuse".to_string(), "reproject".to_string()),
+            ("render.spp".to_string(), "4".to_string()),
+        ];
+        let full = full_trace_overrides(&with_reuse);
+        assert_eq!(
+            full,
+            vec![
+                ("render.spp".to_string(), "4".to_string()),
+                ("render.eye_reuse".to_string(), "off".to_string())
+            ]
+        );
     }
 }

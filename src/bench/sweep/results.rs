@@ -9,20 +9,25 @@ use crate::error::{Error, Result};
 use crate::output::write_csv;
 use std::fmt;
 
-/// Accuracy of one eye against the high-quality render.
+/// Accuracy of one eye against the high-quality render, and against its own full trace (the
+/// same combination with `eye_reuse = "off"`: what reuse changed; infinite PSNR where nothing).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct EyeError {
     pub mean_abs: f64,
     pub psnr: f64,
     pub percent_over: f64,
+    pub psnr_vs_full: f64,
+    pub percent_over_vs_full: f64,
 }
 
 impl EyeError {
-    pub(super) fn from(c: &Comparison) -> EyeError {
+    pub(super) fn from(reference: &Comparison, full: &Comparison) -> EyeError {
         EyeError {
-            mean_abs: c.mean_error,
-            psnr: c.psnr,
-            percent_over: c.percent_failed(),
+            mean_abs: reference.mean_error,
+            psnr: reference.psnr,
+            percent_over: reference.percent_failed(),
+            psnr_vs_full: full.psnr,
+            percent_over_vs_full: full.percent_failed(),
         }
     }
 }
@@ -39,6 +44,9 @@ pub struct FrameRow {
     pub frame_s_min: f64,
     pub frame_s_max: f64,
     pub rays: u64,
+    /// Tracing of the left and the right eye (medians; zero for a view not traced).
+    pub left_s: f64,
+    pub right_s: f64,
     pub eyes: Vec<(String, EyeError)>,
 }
 
@@ -94,6 +102,25 @@ impl CombinationResult {
     pub fn percent_over(&self) -> f64 {
         mean(self.eye_errors().map(|e| e.percent_over))
     }
+
+    /// Right-eye tracing time over left-eye tracing time, the mean over frames.
+    pub fn right_over_left(&self) -> f64 {
+        mean(
+            (self.frames.iter())
+                .filter(|f| f.left_s > 0.0)
+                .map(|f| f.right_s / f.left_s),
+        )
+    }
+
+    /// The right eye's PSNR against its own full trace, the mean over frames (infinite where
+    /// reuse changed nothing).
+    pub fn right_psnr_vs_full(&self) -> f64 {
+        mean(self.frames.iter().flat_map(|f| {
+            (f.eyes.iter())
+                .filter(|(eye, _)| eye == "right")
+                .map(|(_, e)| e.psnr_vs_full)
+        }))
+    }
 }
 
 fn mean(values: impl Iterator<Item = f64>) -> f64 {
@@ -108,20 +135,29 @@ impl fmt::Display for Table<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8}",
-            "combination", "s/frame", "Mrays/s", "peak MB", "mean |err|", "PSNR"
+            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8} {:>6} {:>11}",
+            "combination",
+            "s/frame",
+            "Mrays/s",
+            "peak MB",
+            "mean |err|",
+            "PSNR",
+            "R/L",
+            "R vs full"
         )?;
         for r in self.0 {
             write!(
                 f,
-                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2}",
+                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2} {:>6.3} {:>8.2} dB",
                 r.label(),
                 r.frame_seconds(),
                 r.mrays_per_second(),
                 r.peak_bytes
                     .map_or("-".into(), |b| format!("{:.1}", b as f64 / 1048576.0)),
                 r.mean_abs_error(),
-                r.psnr()
+                r.psnr(),
+                r.right_over_left(),
+                r.right_psnr_vs_full()
             )?;
         }
         Ok(())
@@ -129,7 +165,7 @@ impl fmt::Display for Table<'_> {
 }
 
 /// Columns of `results.csv` after the swept keys.
-pub const RESULTS_COLUMNS: [&str; 13] = [
+pub const RESULTS_COLUMNS: [&str; 17] = [
     "frame",
     "update_s",
     "trace_s",
@@ -143,10 +179,14 @@ pub const RESULTS_COLUMNS: [&str; 13] = [
     "mean_abs_error",
     "psnr",
     "percent_over",
+    "left_s",
+    "right_s",
+    "psnr_vs_full",
+    "percent_over_vs_full",
 ];
 
 /// Columns of `summary.csv` after the swept keys.
-pub const SUMMARY_COLUMNS: [&str; 9] = [
+pub const SUMMARY_COLUMNS: [&str; 11] = [
     "label",
     "frame_s",
     "update_s",
@@ -156,6 +196,8 @@ pub const SUMMARY_COLUMNS: [&str; 9] = [
     "psnr",
     "percent_over",
     "pareto",
+    "right_over_left",
+    "right_psnr_vs_full",
 ];
 
 pub(super) fn write_files(
@@ -201,6 +243,10 @@ pub(super) fn write_files(
                         format!("{:.6}", e.mean_abs),
                         format!("{:.2}", e.psnr),
                         format!("{:.4}", e.percent_over),
+                        format!("{:.6}", f.left_s),
+                        format!("{:.6}", f.right_s),
+                        format!("{:.2}", e.psnr_vs_full),
+                        format!("{:.4}", e.percent_over_vs_full),
                     ],
                 ));
             }
@@ -240,6 +286,8 @@ pub(super) fn write_files(
                     format!("{:.2}", r.psnr()),
                     format!("{:.4}", r.percent_over()),
                     front.contains(&i).to_string(),
+                    format!("{:.4}", r.right_over_left()),
+                    format!("{:.2}", r.right_psnr_vs_full()),
                 ],
             )
         })
