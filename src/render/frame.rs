@@ -150,18 +150,16 @@ pub fn render_views<A: Intersect>(
                     // Whole pixels known without a ray: where every source sample around missed
                     // (the background), or, under `"reproject-radiance"`, the mean radiance of
                     // the samples that landed there.
-                    let fixed: SmallVec<[Option<Vec3>; LANES]> = lanes
+                    let fixed: SmallVec<[Option<Vec3>; LANES]> = reuse
                         .iter()
-                        .zip(&reuse)
-                        .map(|(&(v, x, y), p)| match (views[v].role, p) {
-                            (_, Some(p)) if p.misses() => {
+                        .map(|p| match p {
+                            Some(PixelReuse::Miss) => {
                                 misses_taken += spp as u64;
                                 Some(integrator.settings.background)
                             }
-                            (ViewRole::Target(r), Some(p)) => {
-                                let l = r.pixel_radiance(p, (x, y));
-                                radiance_taken += if l.is_some() { spp as u64 } else { 0 };
-                                l
+                            Some(PixelReuse::Radiance(v)) => {
+                                radiance_taken += spp as u64;
+                                Some(*v)
                             }
                             _ => None,
                         })
@@ -186,9 +184,10 @@ pub fn render_views<A: Intersect>(
                             let o = pixel_sample(s, spp, seed);
                             let f = Vec2::new(x as f32 + o.x, y as f32 + o.y);
                             let (ray, limit) = views[v].camera.ray(f.x, f.y);
-                            let hit = reuse[i]
-                                .as_ref()
-                                .and_then(|r| r.verify(&ray, limit, geometry));
+                            let hit = match &reuse[i] {
+                                Some(PixelReuse::Hits(h)) => h.verify(&ray, limit, geometry),
+                                _ => None,
+                            };
                             (rays[m], limits[m], films[m], known[m]) = (ray, limit, f, hit);
                             slot[m] = i;
                             m += 1;

@@ -168,8 +168,8 @@ pub struct Reprojection {
     width: usize,
     height: usize,
     cells: Vec<Cell>,
-    /// Rule 1: the pixel or a horizontal neighbour holds a sample.
-    covered: Vec<bool>,
+    /// Rules 1 and 2 on the five pixels of a row centred on each pixel.
+    rows: Vec<RowWindow>,
     /// Rule 3: target columns `x_lo..x_hi` may reuse.
     x_lo: usize,
     x_hi: usize,
@@ -177,15 +177,21 @@ pub struct Reprojection {
     radiance: bool,
 }
 
-/// What a target pixel may reuse: candidate triangles and the shadow answers of its window.
-pub struct PixelReuse {
+/// What a target pixel may reuse.
+pub enum PixelReuse {
+    /// Every source sample around it missed: its rays miss too (the background).
+    Miss,
+    /// `"reproject-radiance"`: the pixel's value.
+    Radiance(Vec3),
+    /// Triangles for each sample's own ray to verify, and the window's shadow answers.
+    Hits(HitReuse),
+}
+
+/// Candidate triangles of a pixel and the shadow answers of its window.
+pub struct HitReuse {
     candidates: SmallVec<[u32; MAX_CANDIDATES]>,
     lit: u32,
     shadowed: u32,
-    /// Every sample of the window that asked a light got the same answer.
-    shadows_agree: bool,
-    /// Every sample of the window missed: so does the target's ray (no candidates then).
-    miss: bool,
 }
 
 impl Reprojection {
@@ -270,15 +276,7 @@ impl Reprojection {
                 cells[i].add(sample, q.x - sample.film.x, radiance_ok(sample));
             }
         }
-        let mut covered = vec![false; width * height];
-        for y in 0..height {
-            let row = &cells[y * width..(y + 1) * width];
-            for x in 0..width {
-                covered[y * width + x] = row[x.saturating_sub(1)..(x + 2).min(width)]
-                    .iter()
-                    .any(|c| c.count > 0);
-            }
-        }
+        let rows = row_windows(&cells, width);
         // Rule 3 from the nearest depth the source saw.
         let nearest = nearest.max(source.znear());
         let (x_lo, x_hi) = if nearest.is_finite() {
@@ -294,35 +292,20 @@ impl Reprojection {
             width,
             height,
             cells,
-            covered,
+            rows,
             x_lo,
             x_hi,
             radiance,
         }
     }
 
-    /// Whether every sample in the 3x3 pixels around (x, y) missed (and there is one).
-    fn candidate_window_missed(&self, x: usize, y: usize) -> bool {
-        let mut any = false;
-        for cy in y - WINDOW_Y..=y + WINDOW_Y {
-            for cx in x - CANDIDATE_X..=x + CANDIDATE_X {
-                let c = &self.cells[cy * self.width + cx];
-                if c.misses != c.count {
-                    return false;
-                }
-                any |= c.count > 0;
-            }
-        }
-        any
-    }
-
     /// `"reproject-radiance"`: the mean radiance of the source samples that landed in pixel
-    /// (x, y) (Adelson and Hodges' reuse of the colour), where `pixel` allowed reuse, its
-    /// window agrees on every shadow, and the samples of the pixel and of its two neighbours
+    /// (x, y) (Adelson and Hodges' reuse of the colour), for a pixel whose window passed the
+    /// rules and agrees on every shadow, where the samples of the pixel and of its two neighbours
     /// in the row all may stand for the target's and agree within `RADIANCE_SPREAD` per
     /// channel: a flat patch, where where a sample sits in the pixel does not matter.
-    pub fn pixel_radiance(&self, pixel: &PixelReuse, (x, y): (usize, usize)) -> Option<Vec3> {
-        if !(self.radiance && pixel.shadows_agree && !pixel.miss) {
+    fn pixel_radiance(&self, x: usize, y: usize) -> Option<Vec3> {
+        if !self.radiance {
             return None;
         }
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
@@ -349,49 +332,83 @@ impl Reprojection {
             return None;
         }
         let (mut lit, mut shadowed) = (0u32, 0u32);
-        let mut candidates = SmallVec::new();
         for cy in y - WINDOW_Y..=y + WINDOW_Y {
-            let (mut p_min, mut p_max) = (f32::INFINITY, f32::NEG_INFINITY);
-            for cx in x - WINDOW_X..=x + WINDOW_X {
-                let i = cy * self.width + cx;
-                if !self.covered[i] {
-                    return None;
-                }
-                let c = &self.cells[i];
-                if c.count == 0 {
-                    continue;
-                }
-                p_min = p_min.min(c.parallax_min);
-                p_max = p_max.max(c.parallax_max);
-                lit |= c.lit;
-                shadowed |= c.shadowed;
-                if cx.abs_diff(x) <= CANDIDATE_X {
-                    for &prim in &c.prims[..c.distinct as usize] {
-                        if candidates.len() < MAX_CANDIDATES && !candidates.contains(&prim) {
-                            candidates.push(prim);
-                        }
+            let r = &self.rows[cy * self.width + x];
+            if !r.ok {
+                return None;
+            }
+            lit |= r.lit;
+            shadowed |= r.shadowed;
+        }
+        let shadows_agree = lit & shadowed == 0;
+        if shadows_agree && let Some(v) = self.pixel_radiance(x, y) {
+            return Some(PixelReuse::Radiance(v));
+        }
+        let mut candidates = SmallVec::new();
+        let mut any = false;
+        for cy in y - WINDOW_Y..=y + WINDOW_Y {
+            let row = cy * self.width;
+            for c in &self.cells[row + x - CANDIDATE_X..=row + x + CANDIDATE_X] {
+                any |= c.count > 0;
+                for &prim in &c.prims[..c.distinct as usize] {
+                    if candidates.len() < MAX_CANDIDATES && !candidates.contains(&prim) {
+                        candidates.push(prim);
                     }
                 }
             }
-            let spread = p_max - p_min;
-            if spread > MAX_PARALLAX_SPREAD || spread.is_nan() {
-                return None;
-            }
         }
-        // Every window pixel holds a sample (rule 1); with no triangle among those of the
-        // candidate pixels, they all missed.
-        let miss = candidates.is_empty();
-        if miss && !self.candidate_window_missed(x, y) {
-            return None;
+        // With no triangle among the candidate pixels' samples, they all missed.
+        match (candidates.is_empty(), any) {
+            (true, true) => Some(PixelReuse::Miss),
+            (true, false) => None,
+            (false, _) => Some(PixelReuse::Hits(HitReuse {
+                candidates,
+                lit: lit & !shadowed,
+                shadowed: shadowed & !lit,
+            })),
         }
-        Some(PixelReuse {
-            candidates,
-            lit: lit & !shadowed,
-            shadowed: shadowed & !lit,
-            shadows_agree: lit & shadowed == 0,
-            miss,
-        })
     }
+}
+
+/// What one pixel's row contributes to the rules: whether the five pixels centred on it are all
+/// covered (rule 1) and keep their parallax within the bound (rule 2), and the union of their
+/// samples' shadow answers.
+#[derive(Clone, Copy, Default)]
+struct RowWindow {
+    ok: bool,
+    lit: u32,
+    shadowed: u32,
+}
+
+/// `RowWindow` for every pixel, row by row in parallel.
+fn row_windows(cells: &[Cell], width: usize) -> Vec<RowWindow> {
+    let mut rows = vec![RowWindow::default(); cells.len()];
+    rows.par_chunks_mut(width)
+        .zip(cells.par_chunks(width))
+        .for_each(|(out, row)| {
+            // Rule 1: the pixel or a horizontal neighbour holds a sample.
+            let covered = |x: usize| {
+                row[x.saturating_sub(1)..(x + 2).min(width)]
+                    .iter()
+                    .any(|c| c.count > 0)
+            };
+            for x in WINDOW_X..width.saturating_sub(WINDOW_X) {
+                let window = &row[x - WINDOW_X..=x + WINDOW_X];
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                let (mut lit, mut shadowed) = (0, 0);
+                for c in window.iter().filter(|c| c.count > 0) {
+                    lo = lo.min(c.parallax_min);
+                    hi = hi.max(c.parallax_max);
+                    lit |= c.lit;
+                    shadowed |= c.shadowed;
+                }
+                let spread = hi - lo;
+                let ok = (x - WINDOW_X..=x + WINDOW_X).all(covered)
+                    && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
+                out[x] = RowWindow { ok, lit, shadowed };
+            }
+        });
+    rows
 }
 
 /// Rule 3: the target columns `lo..hi` that may reuse, given the parallax (target x minus
@@ -410,12 +427,7 @@ fn edge_strips(nearest_parallax: f32, width: usize) -> (usize, usize) {
     }
 }
 
-impl PixelReuse {
-    /// Every source sample around the pixel missed: the target's rays miss too.
-    pub fn misses(&self) -> bool {
-        self.miss
-    }
-
+impl HitReuse {
     /// Rule 4: the nearest candidate the ray hits within `t_max`, with the window's shadow
     /// answers; `None` when it hits none.
     pub fn verify(&self, ray: &Ray, t_max: f32, geometry: &Geometry) -> Option<KnownHit> {
@@ -470,7 +482,7 @@ mod tests {
         Reprojection {
             width,
             height,
-            covered: vec![true; width * height],
+            rows: row_windows(&cells, width),
             cells,
             x_lo: 0,
             x_hi: width,
@@ -502,21 +514,59 @@ mod tests {
     #[test]
     fn an_uncovered_pixel_refuses_its_window() {
         let mut g = grid(20, 5, |_, _| 0.0);
-        g.covered[2 * 20 + 10] = false;
+        for x in 9..=11 {
+            g.cells[2 * 20 + x] = Cell::default();
+        }
+        g.rows = row_windows(&g.cells, 20);
         assert!(g.pixel(8, 2).is_none() && g.pixel(12, 1).is_none());
         assert!(g.pixel(7, 2).is_some() && g.pixel(13, 2).is_some());
     }
 
     #[test]
     fn candidates_come_from_the_neighbouring_pixels_and_shadow_answers_must_agree() {
+        let hits = |g: &Reprojection| match g.pixel(8, 2) {
+            Some(PixelReuse::Hits(h)) => h,
+            _ => panic!("a flat window reuses hits"),
+        };
         let mut g = grid(20, 5, |_, _| 0.0);
-        let r = g.pixel(8, 2).expect("a flat window reuses");
+        let r = hits(&g);
         // Pixels 7..=9 saw triangles 1 and 2 (x / 4).
         assert_eq!(r.candidates.as_slice(), &[1, 2]);
         assert_eq!((r.lit, r.shadowed), (1, 0));
-        let c = &mut g.cells[3 * 20 + 10];
-        c.shadowed = 1;
-        let r = g.pixel(8, 2).expect("still reuses the hit");
+        g.cells[3 * 20 + 10].shadowed = 1;
+        g.rows = row_windows(&g.cells, 20);
+        let r = hits(&g);
         assert_eq!((r.lit, r.shadowed), (0, 0), "a disagreeing light is traced");
+    }
+
+    #[test]
+    fn a_flat_rough_pixel_takes_its_samples_mean_radiance_and_an_edge_does_not() {
+        let mut g = grid(20, 5, |_, _| 0.0);
+        g.radiance = true;
+        assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Radiance(v)) if v == Vec3::ONE));
+        // A neighbour in the row that differs by more than the spread: the pixel traces its
+        // own samples on the reused hits.
+        g.cells[2 * 20 + 9].radiance_max = Vec3::splat(1.5);
+        assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Hits(_))));
+    }
+
+    #[test]
+    fn a_window_of_misses_is_the_background() {
+        let mut g = grid(20, 5, |_, _| 0.0);
+        for c in &mut g.cells {
+            *c = Cell::default();
+            let miss = SourceSample {
+                film: Vec2::ZERO,
+                point: Vec3::Z,
+                prim: MISS,
+                lit: 0,
+                shadowed: 0,
+                lobe: -1.0,
+                radiance: Vec3::ZERO,
+            };
+            c.add(&miss, 0.0, false);
+        }
+        g.rows = row_windows(&g.cells, 20);
+        assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Miss)));
     }
 }
