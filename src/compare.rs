@@ -322,8 +322,10 @@ pub fn difference_planes(a: &Planes, b: &Planes, scale: f32) -> Planes {
 }
 
 /// `--diff OUT`: the absolute difference (times `scale`) of every view both files hold, as a
-/// float EXR; with several views, one file per view, the view name added before the extension.
-/// Returns the files written.
+/// float EXR, or for an OUT ending in `.png` as an 8-bit grey image of each pixel's largest
+/// channel difference (times `scale`, clipped to 1: a picture of where two renders differ);
+/// with several views, one file per view, the view name added before the extension. Returns
+/// the files written.
 fn write_differences(
     va: &[(String, Planes)],
     vb: &[(String, Planes)],
@@ -331,6 +333,7 @@ fn write_differences(
     scale: f32,
 ) -> Result<Vec<PathBuf>> {
     let several = va.len() > 1;
+    let png = out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
     let mut written = Vec::new();
     for (name, pa) in va {
         let Some((_, pb)) = vb.iter().find(|(n, _)| n == name) else {
@@ -341,11 +344,23 @@ fn write_differences(
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            out.with_file_name(format!("{stem}_{name}.exr"))
+            let ext = if png { "png" } else { "exr" };
+            out.with_file_name(format!("{stem}_{name}.{ext}"))
         } else {
             out.to_path_buf()
         };
-        exr::write_planes(&path, &difference_planes(pa, pb, scale))?;
+        let d = difference_planes(pa, pb, scale);
+        if png {
+            let grey: Vec<u8> = (0..d.width * d.height)
+                .flat_map(|i| {
+                    let m = d.data.iter().map(|c| c[i]).fold(0.0f32, f32::max);
+                    [(m.clamp(0.0, 1.0) * 255.0).round() as u8; 3]
+                })
+                .collect();
+            crate::output::write_rgb8(&path, d.width, d.height, &grey)?;
+        } else {
+            exr::write_planes(&path, &d)?;
+        }
         written.push(path);
     }
     Ok(written)
@@ -433,6 +448,23 @@ mod tests {
             names: vec!["R".into(), "G".into(), "B".into()],
             data: (0..3).map(|c| v.iter().map(|p| p[c]).collect()).collect(),
         }
+    }
+
+    #[test]
+    fn a_png_difference_is_the_largest_channel_difference_in_grey() {
+        let a = planes(2, 1, &[[0.0, 0.0, 0.0], [0.5, 0.5, 0.5]]);
+        let b = planes(2, 1, &[[0.1, 0.4, 0.0], [0.5, 0.5, 0.5]]);
+        let dir = std::env::temp_dir().join(format!("stereotrace-diff-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("d.png");
+        let views = |p: Planes| vec![("left".to_string(), p)];
+        let written = write_differences(&views(a), &views(b), &out, 2.0).unwrap();
+        assert_eq!(written, vec![out.clone()]);
+        let img = image::open(&out).unwrap().to_rgb8();
+        // max(0.1, 0.4, 0) * 2 = 0.8 -> 204; identical pixel -> 0.
+        assert_eq!(img.get_pixel(0, 0).0, [204, 204, 204]);
+        assert_eq!(img.get_pixel(1, 0).0, [0, 0, 0]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

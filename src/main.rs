@@ -53,7 +53,8 @@ enum Command {
         b: PathBuf,
         #[command(flatten)]
         thresholds: compare::Thresholds,
-        /// Write the absolute difference (times --scale) as a float EXR (one file per view,
+        /// Write the absolute difference (times --scale) as a float EXR, or as a grey PNG of
+        /// each pixel's largest channel difference when DIFF ends in .png (one file per view,
         /// the view name added before the extension when there are several).
         #[arg(long)]
         diff: Option<PathBuf>,
