@@ -4,6 +4,8 @@
 //! `whitted_animated.gltf`: the same with the glass sphere moving (the default animation).
 //! `whitted.gltf`: Whitted's 1980 set-up — a mirror sphere and a glass sphere over a red and
 //! yellow checkered floor, two point lights, a sky-blue background (set by the pipeline).
+//! `whitted_diffuse.gltf`: the same with the spheres made rough clay and plastic, the
+//! diffuse-dominated scene on which `eye_reuse = "reproject"` is measured.
 
 use base64::Engine;
 use serde_json::{Value, json};
@@ -239,12 +241,29 @@ fn whitted(animated: bool) -> Value {
     scene
 }
 
+/// The Whitted scene with its mirror and glass spheres replaced by rough, opaque ones (no
+/// mirror or refraction rays: every pixel is emission and direct light).
+fn whitted_diffuse() -> Value {
+    let mut scene = whitted(false);
+    scene["materials"][1] = json!({"name": "clay", "pbrMetallicRoughness": {"baseColorFactor": [0.85, 0.35, 0.25, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.7}});
+    scene["materials"][2] = json!({"name": "plastic", "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.5, 0.9, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5}});
+    scene["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    for (node, name) in [(1, "clay sphere"), (2, "plastic sphere")] {
+        scene["nodes"][node]["name"] = json!(name);
+    }
+    scene
+}
+
 fn main() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     std::fs::create_dir_all(&dir).expect("scenes/ can be created");
-    for (name, animated) in [("whitted.gltf", false), ("whitted_animated.gltf", true)] {
+    for (name, scene) in [
+        ("whitted.gltf", whitted(false)),
+        ("whitted_animated.gltf", whitted(true)),
+        ("whitted_diffuse.gltf", whitted_diffuse()),
+    ] {
         let path = dir.join(name);
-        let text = serde_json::to_string_pretty(&whitted(animated)).expect("scene serializes");
+        let text = serde_json::to_string_pretty(&scene).expect("scene serializes");
         std::fs::write(&path, text + "\n").expect("scene file can be written");
         println!("wrote {}", path.display());
     }

@@ -333,7 +333,9 @@ fn write_differences(
     scale: f32,
 ) -> Result<Vec<PathBuf>> {
     let several = va.len() > 1;
-    let png = out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let png = out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
     let mut written = Vec::new();
     for (name, pa) in va {
         let Some((_, pb)) = vb.iter().find(|(n, _)| n == name) else {
