@@ -374,26 +374,26 @@ impl<A: Intersect> Integrator<'_, A> {
             } else {
                 0
             };
-            // This light's queries in lane order, each answered by a known bit or by a ray.
-            let mut members: SmallVec<[(usize, Option<bool>); LANES]> = SmallVec::new();
-            let mut k = 0;
+            // This light's queries in lane order (at most one per lane), each answered by a
+            // known bit or by a ray.
+            let mut members = [0usize; LANES];
+            let mut blocked_of = [false; LANES];
+            let (mut n, mut k) = (0, 0);
             for (index, (lane, q)) in queries.iter().enumerate() {
                 if q.light != light {
                     continue;
                 }
                 let (lit, shadowed) = known[*lane];
-                let answer = if lit & bit != 0 {
-                    Some(false)
-                } else if shadowed & bit != 0 {
-                    Some(true)
+                if (lit | shadowed) & bit != 0 {
+                    blocked_of[n] = shadowed & bit != 0;
                 } else {
-                    (shadow[k], limits[k], traced[k]) = (q.shadow, q.t_max, members.len());
+                    (shadow[k], limits[k], traced[k]) = (q.shadow, q.t_max, n);
                     k += 1;
-                    None
-                };
-                members.push((index, answer));
+                }
+                members[n] = index;
+                n += 1;
             }
-            if members.is_empty() {
+            if n == 0 {
                 continue;
             }
             if k > 0 {
@@ -401,14 +401,13 @@ impl<A: Intersect> Integrator<'_, A> {
                     .accel
                     .any_hits(&shadow[..k], &limits[..k], &mut blocked[..k]);
                 for (&m, &b) in traced[..k].iter().zip(&blocked[..k]) {
-                    members[m].1 = Some(b);
+                    blocked_of[m] = b;
                 }
             }
             n_traced += k as u64;
-            n_known += (members.len() - k) as u64;
-            for (index, b) in members {
+            n_known += (n - k) as u64;
+            for (&index, &b) in members[..n].iter().zip(&blocked_of[..n]) {
                 let (lane, q) = &queries[index];
-                let b = b.expect("every query answered");
                 if b {
                     answers[*lane].1 |= bit;
                 } else {
