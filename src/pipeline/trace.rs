@@ -7,7 +7,8 @@ use super::outputs::StereoFrame;
 use crate::accel::{BuildParams, LogRow, Updater};
 use crate::render::{
     EyeCamera, EyeReuse, FilmParams, Integrator, RECORDED_LIGHTS, RayCounts, Reprojection,
-    RigParams, SceneView, SourceSample, TraceSettings, View, ViewFilm, ViewRole, render_views,
+    RigParams, SceneView, SourceSample, TILE, TraceSettings, View, ViewFilm, ViewRole,
+    render_views,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -151,6 +152,7 @@ impl<'p> FrameTracer<'p> {
                     source_camera,
                     &cameras[0],
                     (spec.render.width as usize, spec.render.height as usize),
+                    TILE,
                     zfar.is_none(),
                     take_radiance,
                 )

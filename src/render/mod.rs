@@ -11,7 +11,9 @@ mod shading;
 mod view;
 
 pub use camera::{EyeCamera, Rig, RigParams};
-pub use frame::{EyeReuse, FilmParams, Rendered, ViewFilm, ViewRole, render_views, tile_count};
+pub use frame::{
+    EyeReuse, FilmParams, Rendered, TILE, ViewFilm, ViewRole, render_views, tile_count,
+};
 pub use integrator::{
     Integrator, RECORDED_LIGHTS, RayCounts, SceneView, TraceSettings, offset_origin,
 };

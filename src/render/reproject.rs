@@ -30,7 +30,6 @@
 //! the target alone, thinner than the rules can see) and shadow detail finer than the samples.
 
 use super::camera::EyeCamera;
-use super::frame::TILE;
 use super::integrator::{KnownHit, PrimaryRecord};
 use crate::accel::{Hit, Ray, triangle};
 use crate::scene::pose::Geometry;
@@ -195,15 +194,16 @@ pub struct HitReuse {
 }
 
 impl Reprojection {
-    /// Projects `samples` (in a fixed order, so the result does not depend on threads) from
-    /// `source` into `target`'s film of `width` x `height`. Misses are projected at infinity
-    /// when `misses` (no far plane: a miss is a miss at every distance); `radiance` keeps the
-    /// direct-only samples' radiance for `"reproject-radiance"`.
+    /// Projects the source view's samples, `tiles` of `tile` x `tile` pixels in row-major tile
+    /// order, from `source` into `target`'s film of `width` x `height`. Misses are projected at
+    /// infinity when `misses` (no far plane: a miss is a miss at every distance); `radiance`
+    /// lets rough pixels take their samples' mean radiance (`"reproject-radiance"`).
     pub fn new(
         tiles: &[Vec<SourceSample>],
         source: &EyeCamera,
         target: &EyeCamera,
         (width, height): (usize, usize),
+        tile: usize,
         misses: bool,
         radiance: bool,
     ) -> Reprojection {
@@ -238,8 +238,8 @@ impl Reprojection {
                 && s.lobe >= 0.0
                 && baseline <= LOBE_FRACTION * s.lobe * (s.point - eye).length()
         };
-        let tiles_x = width.div_ceil(TILE);
-        let band_len = TILE * width;
+        let tiles_x = width.div_ceil(tile);
+        let band_len = tile * width;
         let mut cells = vec![Cell::default(); width * height];
         let bands: Vec<(Vec<Stray>, f32)> = cells
             .par_chunks_mut(band_len)
