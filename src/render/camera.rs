@@ -109,8 +109,8 @@ impl EyeCamera {
         (Ray::new(start, dir / len), t_max)
     }
 
-    /// The projection of `project` and `project_direction` as one matrix: a world point (w = 1)
-    /// or direction (w = 0) maps to (X, Y, Z, W) with film position (X / W, Y / W), ahead of the
+    /// The projection of `project` as one matrix, for points and directions alike: a world
+    /// point (w = 1) or direction (w = 0, its point at infinity) maps to (X, Y, Z, W) with film position (X / W, Y / W), ahead of the
     /// eye where W > 0 (W is the depth in the eye's frame). Equal to them up to rounding.
     pub fn film_matrix(&self) -> Mat4 {
         let (w, h) = (self.width, self.height);
@@ -137,26 +137,6 @@ impl EyeCamera {
             * Mat4::from_mat3(self.toe.transpose())
             * Mat4::from_translation(Vec3::new(-self.x_e, 0.0, 0.0))
             * self.to_rig
-    }
-
-    /// Film position (pixels) of the point at infinity along a world direction, or `None` for a
-    /// direction that does not point ahead of the eye: where a ray that missed everything would
-    /// land on this eye's film.
-    pub fn project_direction(&self, dir: Vec3) -> Option<Vec2> {
-        let e = self.toe.transpose() * self.to_rig.transform_vector3(dir);
-        if e.z >= 0.0 {
-            return None;
-        }
-        Some(Vec2::new(
-            ((e.x / -e.z + self.shift) / self.tan_x + 1.0) * 0.5 * self.width,
-            (1.0 - (e.y / -e.z) / self.tan_y) * 0.5 * self.height,
-        ))
-    }
-
-    /// Depth of a world point in front of the rig, metres along its viewing axis (negative
-    /// behind it).
-    pub fn depth(&self, world_point: Vec3) -> f32 {
-        -self.to_rig.transform_point3(world_point).z
     }
 
     /// Depth of the near plane, metres: camera rays start there.
@@ -292,17 +272,6 @@ mod tests {
                 assert!((q - glam::Vec2::new(px, py)).length() < 1e-2, "{rig:?} {q}");
             }
         }
-    }
-
-    #[test]
-    fn a_direction_lands_where_far_points_along_it_do() {
-        let p = params(Rig::OffAxis);
-        let c = EyeCamera::new(world(), &p, View::RIGHT);
-        let (ray, _) = c.ray(200.25, 100.5);
-        let far = c.project(ray.at(1e5)).unwrap();
-        let inf = c.project_direction(ray.dir).unwrap();
-        assert!((far - inf).length() < 0.05, "{far} vs {inf}");
-        assert!(c.project_direction(-ray.dir).is_none());
     }
 
     #[test]

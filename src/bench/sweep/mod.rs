@@ -252,11 +252,9 @@ pub fn sweep(
                         .map(|(view, img)| {
                             let ours = Planes::from_image(img);
                             let c = compare(&ours, view_of(&reference[k], view), &thresholds);
-                            let f = match full {
-                                Some(full) => compare(&ours, view_of(&full[k], view), &thresholds),
-                                None => compare(&ours, &ours, &thresholds),
-                            };
-                            (view.name(), EyeError::from(&c, &f))
+                            let f = full
+                                .map(|full| compare(&ours, view_of(&full[k], view), &thresholds));
+                            (view.name(), EyeError::from(&c, f.as_ref()))
                         })
                         .collect();
                 }

@@ -21,13 +21,14 @@ pub struct EyeError {
 }
 
 impl EyeError {
-    pub(super) fn from(reference: &Comparison, full: &Comparison) -> EyeError {
+    /// `full`: the comparison with the full trace, `None` where the eye is its own full trace.
+    pub(super) fn from(reference: &Comparison, full: Option<&Comparison>) -> EyeError {
         EyeError {
             mean_abs: reference.mean_error,
             psnr: reference.psnr,
             percent_over: reference.percent_failed(),
-            psnr_vs_full: full.psnr,
-            percent_over_vs_full: full.percent_failed(),
+            psnr_vs_full: full.map_or(f64::INFINITY, |f| f.psnr),
+            percent_over_vs_full: full.map_or(0.0, |f| f.percent_failed()),
         }
     }
 }
