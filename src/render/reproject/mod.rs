@@ -103,7 +103,6 @@ type Stray = (usize, usize, Vec2);
 #[derive(Clone, Copy)]
 struct Cell {
     count: u32,
-    misses: u32,
     prims: [u32; SLOTS],
     distinct: u8,
     parallax_min: f32,
@@ -122,7 +121,6 @@ impl Default for Cell {
     fn default() -> Cell {
         Cell {
             count: 0,
-            misses: 0,
             prims: [0; SLOTS],
             distinct: 0,
             parallax_min: f32::INFINITY,
@@ -153,9 +151,7 @@ impl Cell {
         self.lit |= lit;
         self.shadowed |= shadowed;
         let n = self.distinct as usize;
-        if prim == MISS {
-            self.misses += 1;
-        } else if n < SLOTS && !self.prims[..n].contains(&prim) {
+        if prim != MISS && n < SLOTS && !self.prims[..n].contains(&prim) {
             self.prims[n] = prim;
             self.distinct += 1;
         }
@@ -166,14 +162,20 @@ impl Cell {
 pub struct Reprojection {
     width: usize,
     height: usize,
-    cells: Vec<Cell>,
-    /// Rules 1 and 2 on the five pixels of a row centred on each pixel.
-    rows: Vec<RowWindow>,
+    /// Rows `b * band_rows..` of the target film are `bands[b]`.
+    band_rows: usize,
+    bands: Vec<Band>,
     /// Rule 3: target columns `x_lo..x_hi` may reuse.
     x_lo: usize,
     x_hi: usize,
-    /// `"reproject-radiance"`: pixels may take their samples' mean radiance.
-    radiance: bool,
+}
+
+/// A band of target rows: its cells, and rules 1 and 2 on the five pixels of a row centred on
+/// each pixel. Each band is allocated and filled by the thread that fills it: one film-sized
+/// allocation would be written (and its pages faulted in) by one thread alone.
+struct Band {
+    cells: Vec<Cell>,
+    rows: Vec<RowWindow>,
 }
 
 /// What a target pixel may reuse.
@@ -208,7 +210,8 @@ impl Reprojection {
         radiance: bool,
     ) -> Reprojection {
         let to_target = target.film_matrix();
-        let to_source = source.film_matrix();
+        // A point's depth in the source eye's frame: W of its film projection.
+        let source_depth = source.film_matrix().row(3);
         // Where a sample lands: its target pixel (or `None` off the film) and film position.
         let land = |s: &SourceSample| -> Option<(usize, Vec2)> {
             let h = match s.prim {
@@ -229,29 +232,29 @@ impl Reprojection {
         // "reproject-radiance": a sample's radiance stands for the target's where the angle
         // between the two eyes' view directions at its point (baseline over distance) is at
         // most `LOBE_FRACTION` of its highlight lobe's width.
-        let (eye, baseline) = (
+        let (eye, baseline_sq) = (
             source.position(),
-            (target.position() - source.position()).length(),
+            (target.position() - source.position()).length_squared(),
         );
         let radiance_ok = |s: &SourceSample| {
             radiance
                 && s.lobe >= 0.0
-                && baseline <= LOBE_FRACTION * s.lobe * (s.point - eye).length()
+                && baseline_sq
+                    <= (LOBE_FRACTION * s.lobe).powi(2) * (s.point - eye).length_squared()
         };
         let tiles_x = width.div_ceil(tile);
         let band_len = tile * width;
-        let mut cells = vec![Cell::default(); width * height];
-        let bands: Vec<(Vec<Stray>, f32)> = cells
-            .par_chunks_mut(band_len)
-            .zip(tiles.par_chunks(tiles_x))
+        let filled: Vec<(Vec<Cell>, Vec<Stray>, f32)> = tiles
+            .par_chunks(tiles_x)
             .enumerate()
-            .map(|(b, (band, band_tiles))| {
+            .map(|(b, band_tiles)| {
+                let mut band = vec![Cell::default(); band_len.min(width * height - b * band_len)];
                 let mut strays = Vec::new();
                 let mut nearest = f32::INFINITY;
                 for (t, tile) in band_tiles.iter().enumerate() {
                     for (k, sample) in tile.iter().enumerate() {
                         if sample.prim != MISS {
-                            nearest = nearest.min((to_source * sample.point.extend(1.0)).w);
+                            nearest = nearest.min(source_depth.dot(sample.point.extend(1.0)));
                         }
                         let Some((i, q)) = land(sample) else {
                             continue;
@@ -264,19 +267,29 @@ impl Reprojection {
                         }
                     }
                 }
-                (strays, nearest)
+                (band, strays, nearest)
             })
             .collect();
         let mut nearest = f32::INFINITY;
-        for (strays, band_nearest) in &bands {
-            nearest = nearest.min(*band_nearest);
-            for &(t, k, q) in strays {
-                let sample = &tiles[t][k];
-                let i = q.y as usize * width + q.x as usize;
-                cells[i].add(sample, q.x - sample.film.x, radiance_ok(sample));
-            }
+        let mut cells = Vec::with_capacity(filled.len());
+        let mut strays = Vec::new();
+        for (band, band_strays, band_nearest) in filled {
+            nearest = nearest.min(band_nearest);
+            cells.push(band);
+            strays.push(band_strays);
         }
-        let rows = row_windows(&cells, width);
+        for &(t, k, q) in strays.iter().flatten() {
+            let sample = &tiles[t][k];
+            let i = q.y as usize * width + q.x as usize;
+            cells[i / band_len][i % band_len].add(sample, q.x - sample.film.x, radiance_ok(sample));
+        }
+        let bands = cells
+            .into_par_iter()
+            .map(|cells| Band {
+                rows: row_windows(&cells, width, radiance),
+                cells,
+            })
+            .collect();
         // Rule 3 from the nearest depth the source saw.
         let nearest = nearest.max(source.znear());
         let (x_lo, x_hi) = if nearest.is_finite() {
@@ -291,34 +304,18 @@ impl Reprojection {
         Reprojection {
             width,
             height,
-            cells,
-            rows,
+            band_rows: tile,
+            bands,
             x_lo,
             x_hi,
-            radiance,
         }
     }
 
-    /// `"reproject-radiance"`: the mean radiance of the source samples that landed in pixel
-    /// (x, y) (Adelson and Hodges' reuse of the colour), for a pixel whose window passed the
-    /// rules and agrees on every shadow, where the samples of the pixel and of its two neighbours
-    /// in the row all may stand for the target's and agree within `RADIANCE_SPREAD` per
-    /// channel: a flat patch, where where a sample sits in the pixel does not matter.
-    fn pixel_radiance(&self, x: usize, y: usize) -> Option<Vec3> {
-        if !self.radiance {
-            return None;
-        }
-        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for c in &self.cells[y * self.width + x - 1..=y * self.width + x + 1] {
-            if c.direct == 0 || c.direct != c.count {
-                return None;
-            }
-            lo = lo.min(c.radiance_min);
-            hi = hi.max(c.radiance_max);
-        }
-        let flat = (hi - lo).max_element() <= RADIANCE_SPREAD;
-        let c = &self.cells[y * self.width + x];
-        flat.then(|| c.radiance / c.direct as f32)
+    /// Row `y`'s cells and row windows.
+    fn row(&self, y: usize) -> (&[Cell], &[RowWindow]) {
+        let band = &self.bands[y / self.band_rows];
+        let at = (y % self.band_rows) * self.width..(y % self.band_rows + 1) * self.width;
+        (&band.cells[at.clone()], &band.rows[at])
     }
 
     /// What the target pixel (x, y) may reuse, or `None` where it must trace (rules 1-3, and no
@@ -331,25 +328,28 @@ impl Reprojection {
         {
             return None;
         }
-        let (mut lit, mut shadowed) = (0u32, 0u32);
+        let (mut lit, mut shadowed, mut hits) = (0u32, 0u32, false);
         for cy in y - WINDOW_Y..=y + WINDOW_Y {
-            let r = &self.rows[cy * self.width + x];
+            let r = &self.row(cy).1[x];
             if !r.ok {
                 return None;
             }
             lit |= r.lit;
             shadowed |= r.shadowed;
+            hits |= r.hits;
         }
         let shadows_agree = lit & shadowed == 0;
-        if shadows_agree && let Some(v) = self.pixel_radiance(x, y) {
+        if shadows_agree && let Some(v) = self.row(y).1[x].radiance {
             return Some(PixelReuse::Radiance(v));
         }
+        // Rule 1 holds, so the candidate pixels hold samples: with no triangle among them,
+        // they all missed.
+        if !hits {
+            return Some(PixelReuse::Miss);
+        }
         let mut candidates = SmallVec::new();
-        let mut any = false;
         for cy in y - WINDOW_Y..=y + WINDOW_Y {
-            let row = cy * self.width;
-            for c in &self.cells[row + x - CANDIDATE_X..=row + x + CANDIDATE_X] {
-                any |= c.count > 0;
+            for c in &self.row(cy).0[x - CANDIDATE_X..=x + CANDIDATE_X] {
                 for &prim in &c.prims[..c.distinct as usize] {
                     if candidates.len() < MAX_CANDIDATES && !candidates.contains(&prim) {
                         candidates.push(prim);
@@ -357,34 +357,34 @@ impl Reprojection {
                 }
             }
         }
-        // With no triangle among the candidate pixels' samples, they all missed.
-        match (candidates.is_empty(), any) {
-            (true, true) => Some(PixelReuse::Miss),
-            (true, false) => None,
-            (false, _) => Some(PixelReuse::Hits(HitReuse {
-                candidates,
-                lit: lit & !shadowed,
-                shadowed: shadowed & !lit,
-            })),
-        }
+        Some(PixelReuse::Hits(HitReuse {
+            candidates,
+            lit: lit & !shadowed,
+            shadowed: shadowed & !lit,
+        }))
     }
 }
 
 /// What one pixel's row contributes to the rules: whether the five pixels centred on it are all
-/// covered (rule 1) and keep their parallax within the bound (rule 2), and the union of their
-/// samples' shadow answers.
+/// covered (rule 1) and keep their parallax within the bound (rule 2), the union of their
+/// samples' shadow answers, whether the three candidate pixels hold a triangle, and under
+/// `"reproject-radiance"` the pixel's value where its row allows one (`row_radiance`).
+/// Deciding these here, row by row, lets a target pixel read three of these instead of its
+/// window's cells.
 #[derive(Clone, Copy, Default)]
 struct RowWindow {
     ok: bool,
+    hits: bool,
     lit: u32,
     shadowed: u32,
+    radiance: Option<Vec3>,
 }
 
-/// `RowWindow` for every pixel, row by row in parallel.
-fn row_windows(cells: &[Cell], width: usize) -> Vec<RowWindow> {
+/// `RowWindow` for every pixel of the rows `cells`; `radiance` under `"reproject-radiance"`.
+fn row_windows(cells: &[Cell], width: usize, radiance: bool) -> Vec<RowWindow> {
     let mut rows = vec![RowWindow::default(); cells.len()];
-    rows.par_chunks_mut(width)
-        .zip(cells.par_chunks(width))
+    rows.chunks_mut(width)
+        .zip(cells.chunks(width))
         .for_each(|(out, row)| {
             // Rule 1: the pixel or a horizontal neighbour holds a sample.
             let covered = |x: usize| {
@@ -405,10 +405,36 @@ fn row_windows(cells: &[Cell], width: usize) -> Vec<RowWindow> {
                 let spread = hi - lo;
                 let ok = (x - WINDOW_X..=x + WINDOW_X).all(covered)
                     && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
-                out[x] = RowWindow { ok, lit, shadowed };
+                let candidates = &row[x - CANDIDATE_X..=x + CANDIDATE_X];
+                out[x] = RowWindow {
+                    ok,
+                    hits: candidates.iter().any(|c| c.distinct > 0),
+                    lit,
+                    shadowed,
+                    radiance: (radiance && ok).then(|| row_radiance(row, x)).flatten(),
+                };
             }
         });
     rows
+}
+
+/// `"reproject-radiance"`: the mean radiance of the source samples that landed in pixel `x` of
+/// `row` (Adelson and Hodges' reuse of the colour), where the samples of the pixel and of its
+/// two neighbours in the row all may stand for the target's and agree within
+/// `RADIANCE_SPREAD` per channel: a flat patch, where where a sample sits in the pixel does not
+/// matter. The pixel also needs its window to pass the rules and agree on every shadow.
+fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for c in &row[x - 1..=x + 1] {
+        if c.direct == 0 || c.direct != c.count {
+            return None;
+        }
+        lo = lo.min(c.radiance_min);
+        hi = hi.max(c.radiance_max);
+    }
+    let flat = (hi - lo).max_element() <= RADIANCE_SPREAD;
+    let c = &row[x];
+    flat.then(|| c.radiance / c.direct as f32)
 }
 
 /// Rule 3: the target columns `lo..hi` that may reuse, given the parallax (target x minus
@@ -450,123 +476,4 @@ impl HitReuse {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_edge_strip_sits_on_the_side_near_points_move_to() {
-        assert_eq!(edge_strips(-3.2, 100), (0, 96));
-        assert_eq!(edge_strips(2.0, 100), (2, 100));
-        assert_eq!(edge_strips(0.0, 100), (0, 100));
-        assert_eq!(edge_strips(-500.0, 100), (0, 0));
-        assert_eq!(edge_strips(f32::NAN, 100), (0, 0));
-    }
-
-    /// A grid filled directly (no cameras): one sample per pixel at parallax `parallax(x)`.
-    fn grid(width: usize, height: usize, parallax: impl Fn(usize, usize) -> f32) -> Reprojection {
-        let mut cells = vec![Cell::default(); width * height];
-        for y in 0..height {
-            for x in 0..width {
-                let s = SourceSample {
-                    film: Vec2::ZERO,
-                    point: Vec3::ZERO,
-                    prim: (x / 4) as u32,
-                    lit: 1,
-                    shadowed: 0,
-                    lobe: 1.0,
-                    radiance: Vec3::ONE,
-                };
-                cells[y * width + x].add(&s, parallax(x, y), true);
-            }
-        }
-        Reprojection {
-            width,
-            height,
-            rows: row_windows(&cells, width),
-            cells,
-            x_lo: 0,
-            x_hi: width,
-            radiance: false,
-        }
-    }
-
-    #[test]
-    fn a_step_in_parallax_refuses_reuse_around_it_and_only_there() {
-        let g = grid(20, 5, |x, _| if x < 10 { 0.0 } else { -3.0 });
-        for x in 2..18 {
-            let near_step = (8..=11).contains(&x);
-            assert_eq!(g.pixel(x, 2).is_none(), near_step, "x={x}");
-        }
-        // The frame border is traced.
-        assert!(g.pixel(1, 2).is_none() && g.pixel(5, 0).is_none() && g.pixel(5, 4).is_none());
-    }
-
-    #[test]
-    fn a_parallax_that_changes_from_row_to_row_still_reuses() {
-        // A receding floor: one pixel more parallax per row, constant along each row.
-        let g = grid(20, 6, |_, y| y as f32);
-        assert!((1..5).all(|y| g.pixel(8, y).is_some()));
-        // Along a row the same change is a step.
-        let g = grid(20, 6, |x, _| x as f32);
-        assert!(g.pixel(8, 2).is_none());
-    }
-
-    #[test]
-    fn an_uncovered_pixel_refuses_its_window() {
-        let mut g = grid(20, 5, |_, _| 0.0);
-        for x in 9..=11 {
-            g.cells[2 * 20 + x] = Cell::default();
-        }
-        g.rows = row_windows(&g.cells, 20);
-        assert!(g.pixel(8, 2).is_none() && g.pixel(12, 1).is_none());
-        assert!(g.pixel(7, 2).is_some() && g.pixel(13, 2).is_some());
-    }
-
-    #[test]
-    fn candidates_come_from_the_neighbouring_pixels_and_shadow_answers_must_agree() {
-        let hits = |g: &Reprojection| match g.pixel(8, 2) {
-            Some(PixelReuse::Hits(h)) => h,
-            _ => panic!("a flat window reuses hits"),
-        };
-        let mut g = grid(20, 5, |_, _| 0.0);
-        let r = hits(&g);
-        // Pixels 7..=9 saw triangles 1 and 2 (x / 4).
-        assert_eq!(r.candidates.as_slice(), &[1, 2]);
-        assert_eq!((r.lit, r.shadowed), (1, 0));
-        g.cells[3 * 20 + 10].shadowed = 1;
-        g.rows = row_windows(&g.cells, 20);
-        let r = hits(&g);
-        assert_eq!((r.lit, r.shadowed), (0, 0), "a disagreeing light is traced");
-    }
-
-    #[test]
-    fn a_flat_rough_pixel_takes_its_samples_mean_radiance_and_an_edge_does_not() {
-        let mut g = grid(20, 5, |_, _| 0.0);
-        g.radiance = true;
-        assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Radiance(v)) if v == Vec3::ONE));
-        // A neighbour in the row that differs by more than the spread: the pixel traces its
-        // own samples on the reused hits.
-        g.cells[2 * 20 + 9].radiance_max = Vec3::splat(1.5);
-        assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Hits(_))));
-    }
-
-    #[test]
-    fn a_window_of_misses_is_the_background() {
-        let mut g = grid(20, 5, |_, _| 0.0);
-        for c in &mut g.cells {
-            *c = Cell::default();
-            let miss = SourceSample {
-                film: Vec2::ZERO,
-                point: Vec3::Z,
-                prim: MISS,
-                lit: 0,
-                shadowed: 0,
-                lobe: -1.0,
-                radiance: Vec3::ZERO,
-            };
-            c.add(&miss, 0.0, false);
-        }
-        g.rows = row_windows(&g.cells, 20);
-        assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Miss)));
-    }
-}
+mod tests;
