@@ -1,11 +1,11 @@
-//! The animated references in `../shared/refs/anim/` (a skinned, a morphed and an interpolation
+//! The animated references in `tests/data/refs/anim/` (a skinned, a morphed and an interpolation
 //! test model, posed by an independent implementation and rendered by Mitsuba 3 under WHITTED.md
 //! and DESIGN.md's animation conventions): every frame there, both eyes, must pass idiff's
 //! `--fail 0.02 --failpercent 0.5`.
 
 mod common;
 
-use common::{scratch, shared};
+use common::{data, scratch};
 use stereotrace::compare::{Planes, Thresholds, Verdict, compare};
 use stereotrace::output::exr::{read_view_planes, read_views};
 use stereotrace::pipeline::LoadedPipeline;
@@ -13,7 +13,7 @@ use stereotrace::pipeline::run::{RunOptions, run};
 
 #[test]
 fn every_animated_reference_frame_matches() {
-    let mut dirs: Vec<_> = std::fs::read_dir(shared().join("refs/anim"))
+    let mut dirs: Vec<_> = std::fs::read_dir(data().join("refs/anim"))
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|d| d.join("params.json").is_file())
@@ -21,7 +21,7 @@ fn every_animated_reference_frame_matches() {
     dirs.sort();
     assert!(
         !dirs.is_empty(),
-        "no animated references under ../shared/refs/anim"
+        "no animated references under tests/data/refs/anim"
     );
     let t = Thresholds {
         fail: 0.02,

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{scratch, shared};
+use common::{data, scratch};
 use glam::{Mat4, Quat, Vec3};
 use stereotrace::accel::BuildParams;
 use stereotrace::accel::{UpdateMode, Updater};
@@ -12,7 +12,7 @@ use stereotrace::scene::animation::{self, Property};
 use stereotrace::scene::{Scene, Transform, pose};
 
 fn load(model: &str) -> Scene {
-    Scene::load(&shared().join("scenes").join(model)).unwrap()
+    Scene::load(&data().join("scenes").join(model)).unwrap()
 }
 
 fn trs(t: &Transform) -> Mat4 {
@@ -143,7 +143,7 @@ fn a_frame_rendered_alone_equals_the_same_frame_inside_a_range() {
         &pipeline,
         format!(
             "[scene]\npath = {:?}\n[render]\nwidth = 48\nheight = 32\nspp = 2\n[frames]\nstart = 4\nend = 8\n[[output]]\nkind = \"exr\"\npath = \"f_{{frame:04}}.exr\"\n",
-            shared().join("refs/anim/anim_InterpolationTest/scene.glb").to_string_lossy()
+            data().join("refs/anim/anim_InterpolationTest/scene.glb").to_string_lossy()
         ),
     )
     .unwrap();

@@ -153,7 +153,7 @@ fn out_of_range_value() {
 #[test]
 fn truncated_glb() {
     let c = Case::new("truncated-glb");
-    let glb = std::fs::read(common::shared().join("scenes/Box/Box.glb")).unwrap();
+    let glb = std::fs::read(common::data().join("scenes/Box/Box.glb")).unwrap();
     c.file("s.glb", &glb[..glb.len() / 2]);
     let p = c.file("p.toml", pipeline("s.glb", ""));
     c.fails(&p, &["s.glb"]);

@@ -52,7 +52,10 @@ fn render(pipeline: &Path, eye_reuse: &str, threads: usize, name: &str) -> Vec<u
 #[test]
 fn paired_eyes_give_the_images_of_separate_eyes_on_every_reference_scene() {
     let dirs = reference_dirs();
-    assert!(!dirs.is_empty(), "no reference scenes under ../shared/refs");
+    assert!(
+        !dirs.is_empty(),
+        "no reference scenes under tests/data/refs"
+    );
     for dir in dirs {
         let name = dir.file_name().unwrap().to_string_lossy().to_string();
         let pipeline = reference_pipeline(&dir, &scratch(&format!("reuse-{name}")));

@@ -228,7 +228,7 @@ fn coordinates_from_micrometres_to_thousands_of_kilometres() {
 #[test]
 fn real_meshes() {
     for model in ["StanfordBunny/bunny_res4.glb", "Duck/Duck.glb"] {
-        let scene = Scene::load(&common::shared().join("scenes").join(model)).unwrap();
+        let scene = Scene::load(&common::data().join("scenes").join(model)).unwrap();
         let posed = pose::pose(&scene, &[]);
         let g = &posed.geometry;
         let tris: Vec<[Vec3; 3]> = g.triangle_list();

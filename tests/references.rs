@@ -1,4 +1,4 @@
-//! Every reference scene in `../shared/refs/` (rendered by Mitsuba 3 under WHITTED.md) is rendered
+//! Every reference scene in `tests/data/refs/` (rendered by Mitsuba 3 under WHITTED.md) is rendered
 //! with its own parameters and compared per eye with idiff's rule `--fail 0.02 --failpercent 0.5`.
 
 mod common;
@@ -12,7 +12,7 @@ fn static_references_match_within_idiff_thresholds() {
     let dirs = reference_dirs();
     assert!(
         !dirs.is_empty(),
-        "no reference scenes found under ../shared/refs"
+        "no reference scenes found under tests/data/refs"
     );
     // WHITTED.md section 6: idiff --fail 0.02 --failpercent 0.5 per eye.
     let t = Thresholds {

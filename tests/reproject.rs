@@ -94,7 +94,10 @@ fn diff(a: &Image, b: &Image) -> Comparison {
 #[test]
 fn reprojection_passes_every_mitsuba_reference_on_both_eyes() {
     let dirs = reference_dirs();
-    assert!(!dirs.is_empty(), "no reference scenes under ../shared/refs");
+    assert!(
+        !dirs.is_empty(),
+        "no reference scenes under tests/data/refs"
+    );
     // WHITTED.md section 6: idiff --fail 0.02 --failpercent 0.5 per eye.
     let t = Thresholds {
         fail: 0.02,

@@ -1,9 +1,9 @@
-//! Third-party sample models from `../shared/scenes/` load and render: textures, scenes without
+//! Third-party sample models from `tests/data/scenes/` load and render: textures, scenes without
 //! lights or cameras, several cameras, transmission. Each render must be finite and not black.
 
 mod common;
 
-use common::{scratch, shared};
+use common::{data, scratch};
 use std::process::Command;
 use stereotrace::output::exr::read_views;
 
@@ -18,7 +18,7 @@ fn render(
         &pipeline,
         format!(
             "[scene]\npath = {:?}\n{extra_scene_keys}\n[render]\nwidth = 48\nheight = 32\nspp = 1\n[[output]]\nkind = \"exr\"\npath = \"img.exr\"\n",
-            shared().join("scenes").join(model).to_string_lossy()
+            data().join("scenes").join(model).to_string_lossy()
         ),
     )
     .unwrap();
@@ -86,7 +86,7 @@ fn a_camera_is_chosen_by_index() {
 fn info_reports_what_the_scene_holds() {
     let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
         .args(["info", "--accel", "--json"])
-        .arg(shared().join("scenes/RiggedFigure/RiggedFigure.glb"))
+        .arg(data().join("scenes/RiggedFigure/RiggedFigure.glb"))
         .output()
         .unwrap();
     assert!(out.status.success());

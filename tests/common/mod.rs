@@ -10,9 +10,10 @@ pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// `../shared` beside the repository (CI always provides it).
-pub fn shared() -> PathBuf {
-    repo().join("..").join("shared")
+/// The test data kept in the repository (`tests/data/README.md`): the Mitsuba references and the
+/// small sample models the suite reads, each with its license.
+pub fn data() -> PathBuf {
+    repo().join("tests").join("data")
 }
 
 /// A fresh empty directory under the target folder.
@@ -25,7 +26,7 @@ pub fn scratch(name: &str) -> PathBuf {
 
 /// Static reference scene folders (those with a scene.gltf and params.json).
 pub fn reference_dirs() -> Vec<PathBuf> {
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(shared().join("refs"))
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(data().join("refs"))
         .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
         .unwrap_or_default();
     dirs.retain(|d| d.join("scene.gltf").is_file() && d.join("params.json").is_file());
@@ -76,29 +77,62 @@ pub fn render_reference(dir: &Path) -> Vec<(String, Image)> {
     stereotrace::output::exr::read_views(&out.join("ours.exr")).unwrap()
 }
 
-/// OpenImageIO's command-line tools folder and a Python that imports `OpenImageIO`, when
-/// installed: from `STEREOTRACE_OIIO_BIN` / `STEREOTRACE_OIIO_PYTHON`, else `idiff` and
-/// `python3` on the PATH. With `STEREOTRACE_REQUIRE_OIIO=1` (CI) a missing install is an error
-/// instead of a skip.
+/// OpenImageIO's command-line tools folder and a Python that imports `OpenImageIO`: from
+/// `STEREOTRACE_OIIO_BIN` / `STEREOTRACE_OIIO_PYTHON`, else what `scripts/test.sh` provisioned
+/// under `target/tools`, else `idiff` and `python3` on the PATH. Not found, the calling test
+/// fails with the way to get it, unless `STEREOTRACE_SKIP_OIIO=1` asks to skip it knowingly.
 pub fn oiio() -> Option<(PathBuf, PathBuf)> {
+    let provisioned = repo().join("target").join("tools").join("bin");
     let bin = std::env::var_os("STEREOTRACE_OIIO_BIN")
         .map(PathBuf::from)
+        .or_else(|| {
+            provisioned
+                .join("idiff")
+                .is_file()
+                .then(|| provisioned.clone())
+        })
         .or_else(|| which("idiff").and_then(|p| p.parent().map(Path::to_path_buf)));
     let python = std::env::var_os("STEREOTRACE_OIIO_PYTHON")
         .map(PathBuf::from)
+        .or_else(|| {
+            let p = provisioned.join("python");
+            p.is_file().then_some(p)
+        })
         .or_else(|| which("python3"));
     let found = match (bin, python) {
         (Some(b), Some(p)) if b.join("idiff").is_file() && python_has_oiio(&p) => Some((b, p)),
         _ => None,
     };
     if found.is_none() {
-        assert!(
-            std::env::var("STEREOTRACE_REQUIRE_OIIO").as_deref() != Ok("1"),
-            "STEREOTRACE_REQUIRE_OIIO=1 but OpenImageIO (idiff and the Python module) was not found"
+        missing_tool(
+            "OpenImageIO (idiff and its Python module)",
+            "STEREOTRACE_SKIP_OIIO",
         );
-        eprintln!("skipped: OpenImageIO is not installed (pip install openimageio; see .ci/run)");
     }
     found
+}
+
+/// Whether ffmpeg runs. Not found, the calling test fails with the way to get it, unless
+/// `STEREOTRACE_SKIP_FFMPEG=1` asks to skip it knowingly.
+pub fn ffmpeg() -> bool {
+    let ok = stereotrace::output::video::ffmpeg_available();
+    if !ok {
+        missing_tool("ffmpeg", "STEREOTRACE_SKIP_FFMPEG");
+    }
+    ok
+}
+
+/// A tool a test compares against is missing: a failure naming how to get it, or with
+/// `skip_var=1` a skip said out loud (the test then checks nothing about that tool).
+fn missing_tool(tool: &str, skip_var: &str) {
+    if std::env::var(skip_var).as_deref() == Ok("1") {
+        eprintln!("SKIPPED (by {skip_var}=1): the checks against {tool}");
+        return;
+    }
+    panic!(
+        "{tool} was not found. Run the suite with scripts/test.sh, which provisions it under \
+         target/tools, or set {skip_var}=1 to skip the checks against it knowingly"
+    );
 }
 
 fn which(name: &str) -> Option<PathBuf> {
@@ -114,17 +148,4 @@ fn python_has_oiio(python: &Path) -> bool {
         .args(["-c", "import OpenImageIO"])
         .output()
         .is_ok_and(|o| o.status.success())
-}
-
-/// Whether ffmpeg runs; with `STEREOTRACE_REQUIRE_FFMPEG=1` (CI) its absence is an error.
-pub fn ffmpeg() -> bool {
-    let ok = stereotrace::output::video::ffmpeg_available();
-    if !ok {
-        assert!(
-            std::env::var("STEREOTRACE_REQUIRE_FFMPEG").as_deref() != Ok("1"),
-            "STEREOTRACE_REQUIRE_FFMPEG=1 but ffmpeg was not found"
-        );
-        eprintln!("skipped: ffmpeg is not installed (apt-get install ffmpeg; see .ci/run)");
-    }
-    ok
 }
