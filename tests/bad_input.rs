@@ -271,3 +271,42 @@ fn the_valid_triangle_renders() {
     assert!(c.dir.join("out/img_left.png").is_file());
     assert!(c.dir.join("out/img_right.png").is_file());
 }
+
+#[test]
+fn an_output_path_whose_extension_is_not_the_format_written() {
+    let c = Case::new("extension");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let anaglyph = pipeline("s.gltf", "")
+        .replace("kind = \"png\"", "kind = \"anaglyph\"")
+        .replace("img_{eye}.png", "a.jpg");
+    let p = c.file("p.toml", anaglyph);
+    c.fails(&p, &["p.toml:10:", "PNG", ".png"]);
+    let exr = pipeline("s.gltf", "")
+        .replace("kind = \"png\"", "kind = \"exr\"")
+        .replace("img_{eye}.png", "b.png");
+    let p = c.file("p2.toml", exr);
+    c.fails(&p, &["p2.toml:10:", "EXR", ".exr"]);
+}
+
+#[test]
+fn a_pipeline_without_outputs() {
+    let c = Case::new("no-outputs");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let text = pipeline("s.gltf", "");
+    let p = c.file("p.toml", &text[..text.find("[[output]]").unwrap()]);
+    c.fails(&p, &["p.toml", "no [[output]]", "kind = \"png\""]);
+}
+
+#[test]
+fn a_scene_given_where_a_pipeline_is_expected() {
+    let c = Case::new("scene-as-pipeline");
+    let glb = std::fs::read(common::data().join("scenes/Box/Box.glb")).unwrap();
+    let p = c.file("Box.glb", &glb);
+    c.fails(
+        &p,
+        &["Box.glb", "glTF scene, not a pipeline", "stereotrace new"],
+    );
+    // Binary that is not glTF either.
+    let p = c.file("p.toml", [0xff, 0xfe, 0x00, 0x81]);
+    c.fails(&p, &["p.toml", "not a pipeline", "UTF-8"]);
+}

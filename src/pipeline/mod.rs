@@ -52,11 +52,38 @@ pub struct LoadedPipeline {
     pub warnings: Vec<String>,
 }
 
+/// A pipeline file's text. A glTF scene given where a pipeline is expected (the likeliest
+/// mistake), or any file that is not UTF-8 text, is refused with what to do instead.
+fn pipeline_text(file: &Path, bytes: Vec<u8>) -> Result<String> {
+    let ext = file
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let gltf = bytes.starts_with(b"glTF") || matches!(ext.as_deref(), Some("glb" | "gltf"));
+    if gltf {
+        return Err(Error::input(
+            file,
+            "this is a glTF scene, not a pipeline: a pipeline is a TOML file that names the scene, \
+             the frames, the stereo rig and the outputs. `stereotrace new SCENE > my.toml` writes \
+             one for this scene; then `stereotrace render my.toml`",
+        ));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        Error::input(
+            file,
+            format!(
+                "not a pipeline: a pipeline is a UTF-8 TOML text file, and byte {} is not UTF-8",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })
+}
+
 impl LoadedPipeline {
     /// Reads, parses and validates a pipeline file and loads its scene. No rendering happens and
     /// no file is written.
     pub fn load(file: &Path) -> Result<LoadedPipeline> {
-        let src = std::fs::read_to_string(file).map_err(|e| Error::io(file, e))?;
+        let bytes = std::fs::read(file).map_err(|e| Error::io(file, e))?;
+        let src = pipeline_text(file, bytes)?;
         Self::from_source(file, src, None)
     }
 

@@ -143,6 +143,15 @@ fn default_delay_ms() -> u32 {
 }
 
 impl OutputSpec {
+    /// The file format this output writes, as its file name extension.
+    fn file_format(&self) -> &'static str {
+        match self {
+            OutputSpec::Exr { .. } => "exr",
+            OutputSpec::WobbleGif { .. } => "gif",
+            _ => "png",
+        }
+    }
+
     pub fn path(&self) -> &str {
         match self {
             OutputSpec::Exr { path, .. }
@@ -262,6 +271,19 @@ impl OutputSpec {
         multi_frame: bool,
     ) -> Result<(), (&'static str, String)> {
         let fail = |key: &'static str, m: &str| Err((key, m.to_string()));
+        let format = self.file_format();
+        let ext = Path::new(self.path())
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if ext.as_deref() != Some(format) {
+            return fail(
+                "path",
+                &format!(
+                    "this output writes {} files: the path must end in .{format}",
+                    format.to_ascii_uppercase()
+                ),
+            );
+        }
         if multi_frame && !path.has_frame() && !self.single_file() {
             return fail(
                 "path",

@@ -40,6 +40,9 @@ pub struct FrameTracer<'p> {
     p: &'p LoadedPipeline,
     animations: Vec<&'p Animation>,
     updater: Updater,
+    /// The scene's bounds over the pipeline's whole frame range, for the default camera and
+    /// head-light (so neither moves with the animation); `None` when neither is used.
+    range_bounds: Option<(Vec3, Vec3)>,
 }
 
 impl<'p> FrameTracer<'p> {
@@ -56,10 +59,15 @@ impl<'p> FrameTracer<'p> {
         .with_samples_per_frame(
             2 * p.spec.render.width as u64 * p.spec.render.height as u64 * p.spec.render.spp as u64,
         );
+        let lit = p.scene.nodes.iter().any(|n| n.light.is_some());
+        let range_bounds = (p.camera_instance.is_none() || !lit)
+            .then(|| range_bounds(p, &animations))
+            .flatten();
         FrameTracer {
             p,
             animations,
             updater,
+            range_bounds,
         }
     }
 
@@ -79,9 +87,10 @@ impl<'p> FrameTracer<'p> {
 
         let (accel, update_rows) = self.updater.update(&posed);
         stats.update = update_rows;
-        let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed);
+        let bounds = self.range_bounds.or_else(|| posed.geometry.bounds());
+        let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed, bounds);
         let lights = if posed.lights.is_empty() {
-            vec![head_light(&camera_world, &posed)]
+            vec![head_light(&camera_world, bounds)]
         } else {
             posed.lights.clone()
         };
@@ -191,8 +200,45 @@ impl<'p> FrameTracer<'p> {
     }
 }
 
-/// The camera placement and lens for a frame, with the scene's fallbacks applied.
-fn frame_camera(p: &LoadedPipeline, posed: &PosedScene) -> (Mat4, f32, f32, Option<f32>) {
+/// At most this many frames are posed to find the bounds of an animation, evenly spread over
+/// the range with its first and last frame: ten seconds at 24 fps, all of a typical clip, and a
+/// bounded start-up cost for a long one.
+const BOUNDS_FRAMES: u32 = 240;
+
+/// The union of the posed scene's bounds over the pipeline's `[frames]` range (not a
+/// `--frames` override: a shard or a single frame gets the same camera as the whole range).
+fn range_bounds(p: &LoadedPipeline, animations: &[&Animation]) -> Option<(Vec3, Vec3)> {
+    let f = &p.spec.frames;
+    let n = if animations.is_empty() {
+        1
+    } else {
+        (f.end - f.start + 1).min(BOUNDS_FRAMES)
+    };
+    (0..n)
+        .map(|i| {
+            let frame = match n {
+                1 => f.start,
+                _ => f.start + ((f.end - f.start) as u64 * i as u64 / (n - 1) as u64) as u32,
+            };
+            p.scene
+                .pose_at(animations, frame as f32 / f.fps)
+                .geometry
+                .bounds()
+        })
+        .reduce(|a, b| match (a, b) {
+            (Some((alo, ahi)), Some((blo, bhi))) => Some((alo.min(blo), ahi.max(bhi))),
+            (a, b) => a.or(b),
+        })
+        .flatten()
+}
+
+/// The camera placement and lens for a frame, with the scene's fallbacks applied: without a
+/// camera in the scene, one that frames `bounds`.
+fn frame_camera(
+    p: &LoadedPipeline,
+    posed: &PosedScene,
+    bounds: Option<(Vec3, Vec3)>,
+) -> (Mat4, f32, f32, Option<f32>) {
     match p.camera_instance {
         Some(i) => {
             let pc = &posed.cameras[i];
@@ -200,31 +246,92 @@ fn frame_camera(p: &LoadedPipeline, posed: &PosedScene) -> (Mat4, f32, f32, Opti
             (pc.world, def.yfov, def.znear, def.zfar)
         }
         None => {
-            let (lo, hi) = posed
-                .geometry
-                .bounds()
-                .unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
+            let (lo, hi) = bounds.unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
             let (def, world) = framing_camera(lo, hi);
             (world, def.yfov, def.znear, def.zfar)
         }
     }
 }
 
-/// A scene without lights gets a head-light: a point light at the rig's centre whose intensity is
-/// `pi * d^2` (d: distance to the centre of the scene's bounds), so a white diffuse surface facing
-/// the camera at the centre has radiance 1.
-fn head_light(camera: &Mat4, posed: &PosedScene) -> Light {
+/// The radiance of a white diffuse surface facing the head-light at the nearest point of the
+/// scene's bounds: below 1 so that the nearest surfaces keep their shading instead of clipping
+/// to white in an 8-bit output (surfaces further away are darker by the square of distance).
+const HEAD_LIGHT_WHITE: f32 = 0.8;
+
+/// A scene without lights gets a head-light: a point light at the rig's centre whose intensity
+/// is `HEAD_LIGHT_WHITE * pi * d^2`, with `d` the distance to the nearest point of the scene's
+/// bounds (to their centre when the camera is inside them).
+fn head_light(camera: &Mat4, bounds: Option<(Vec3, Vec3)>) -> Light {
     let position = camera.transform_point3(Vec3::ZERO);
-    let center = posed
-        .geometry
-        .bounds()
-        .map_or(Vec3::ZERO, |(lo, hi)| (lo + hi) * 0.5);
-    let d2 = (center - position).length_squared().max(1e-6);
+    let d2 = match bounds {
+        Some((lo, hi)) => {
+            let nearest = position.clamp(lo, hi).distance_squared(position);
+            if nearest > 0.0 {
+                nearest
+            } else {
+                position.distance_squared((lo + hi) * 0.5)
+            }
+        }
+        None => 1.0,
+    }
+    .max(1e-6);
     Light {
         kind: LightKind::Point,
-        power: Vec3::splat(std::f32::consts::PI * d2),
+        power: Vec3::splat(HEAD_LIGHT_WHITE * std::f32::consts::PI * d2),
         position,
         direction: camera.transform_vector3(Vec3::NEG_Z),
         range: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// BoxAnimated has no camera and no lights, and its lid lifts: its bounds change per frame.
+    fn box_animated() -> LoadedPipeline {
+        let dir = std::env::temp_dir().join(format!("stereotrace-trace-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/scenes/BoxAnimated/BoxAnimated.glb");
+        let file = dir.join("p.toml");
+        std::fs::write(
+            &file,
+            format!(
+                "[scene]\npath = {:?}\nanimation = \"all\"\n[frames]\nstart = 0\nend = 47\n\
+                 [[output]]\nkind = \"png\"\npath = \"f_{{frame}}_{{eye}}.png\"\n",
+                scene.to_string_lossy()
+            ),
+        )
+        .unwrap();
+        let p = LoadedPipeline::load(&file).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        p
+    }
+
+    #[test]
+    fn the_default_camera_and_head_light_stay_put_over_the_range() {
+        let p = box_animated();
+        let tracer = FrameTracer::new(&p);
+        let range = tracer.range_bounds.expect("no camera: the range is framed");
+        let frame = |k: u32| {
+            let posed = p.scene.pose_at(&tracer.animations, k as f32 / 24.0);
+            let bounds = posed.geometry.bounds().unwrap();
+            let (world, ..) = frame_camera(&p, &posed, tracer.range_bounds);
+            let light = head_light(&world, tracer.range_bounds);
+            (bounds, world, light.position, light.power)
+        };
+        let (first, world, position, power) = frame(0);
+        let mut moved = false;
+        for k in 1..48 {
+            let (b, w, pos, pw) = frame(k);
+            moved |= b != first;
+            assert!(
+                range.0.cmple(b.0).all() && range.1.cmpge(b.1).all(),
+                "frame {k}"
+            );
+            assert_eq!((w, pos, pw), (world, position, power), "frame {k}");
+        }
+        assert!(moved, "the model's bounds change over the range");
     }
 }

@@ -94,6 +94,13 @@ pub(super) fn validate_values(
             format!("fps must be in (0, 1000], got {}", f.fps),
         ));
     }
+    if p.outputs.is_empty() {
+        return Err(invalid(
+            &[],
+            "the pipeline has no [[output]]: nothing would be written. Add one, for example\n\
+             [[output]]\nkind = \"png\"\npath = \"out/frame_{frame:04}_{eye}.png\"",
+        ));
+    }
     let multi_frame = f.end > f.start;
     let stereo = s.rig != Rig::Mono;
     let mut templates = Vec::new();
@@ -134,8 +141,11 @@ pub(super) fn resolve_camera(
         None => {
             if instances.is_empty() {
                 warnings.push(format!(
-                    "{}: the scene has no camera; using a default camera that frames the scene's bounds",
-                    scene.source.display()
+                    "{}: the scene has no camera; using a default camera that frames the scene's \
+                     bounds over frames {}..{} (one camera for every frame of the range)",
+                    scene.source.display(),
+                    p.frames.start,
+                    p.frames.end
                 ));
                 return Ok(None);
             }
