@@ -46,6 +46,15 @@ enum Command {
     },
     /// Validate a pipeline and its scene without rendering.
     Check { pipeline: PathBuf },
+    /// Write a commented pipeline for a scene (its cameras, animations and frame range filled
+    /// in, every output kind present): `stereotrace new scene.glb -o my.toml`.
+    New {
+        /// The glTF scene (.gltf or .glb).
+        scene: PathBuf,
+        /// Pipeline file to create (default: standard output).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
     /// Compare two images with OpenImageIO idiff's rules and exit statuses (0 pass, 1 warning,
     /// 2 failure, 4 unreadable input); multi-view EXR files are compared view by view.
     Compare {
@@ -149,6 +158,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let summary = stereotrace::pipeline::run(&p, &opts)?;
             if !quiet {
                 eprintln!("{summary}");
+            }
+        }
+        Command::New { scene, output } => {
+            if let Some(text) = stereotrace::pipeline::new_pipeline(&scene, output.as_deref())? {
+                print!("{text}");
             }
         }
         Command::Check { pipeline } => {

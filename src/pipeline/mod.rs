@@ -11,6 +11,7 @@ mod output_spec;
 mod outputs;
 pub mod run;
 mod schema;
+mod starter;
 mod template;
 mod trace;
 mod validate;
@@ -22,6 +23,7 @@ pub use run::{FRAME_LOG_COLUMNS, RunOptions, RunSummary, run};
 pub use schema::{
     AccelSection, FramesSection, Pipeline, RenderSection, SceneSection, Selector, StereoSection,
 };
+pub use starter::new_pipeline;
 pub use template::PathTemplate;
 pub use trace::{FrameStats, FrameTracer};
 
