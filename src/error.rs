@@ -34,6 +34,9 @@ pub enum Error {
     /// `compare` could not read an input or write its difference image: idiff's status 4.
     #[error(transparent)]
     Compare(Box<Error>),
+    /// `render` stopped on SIGINT or SIGTERM; `message` says what was finished and how to go on.
+    #[error("interrupted: {message}")]
+    Interrupted { message: String },
     /// A broken invariant of the program, never the user's input.
     #[error("internal error (a bug in stereotrace, please report it): {0}")]
     Internal(String),
@@ -64,9 +67,11 @@ impl Error {
 
     /// Exit status for the command line: 2 for anything the user's input caused, 1 when
     /// reading or writing failed otherwise, 4 for `compare`'s unreadable inputs (idiff's), and
-    /// 70 for a program bug (`EX_SOFTWARE` of BSD's sysexits.h).
+    /// 70 for a program bug (`EX_SOFTWARE` of BSD's sysexits.h), 130 when interrupted (128 +
+    /// SIGINT, the shells' convention).
     pub fn exit_code(&self) -> u8 {
         match self {
+            Error::Interrupted { .. } => 130,
             Error::Io { source, .. } if source.kind() != std::io::ErrorKind::NotFound => 1,
             Error::Compare(_) => 4,
             Error::Internal(_) => 70,

@@ -62,7 +62,12 @@ impl VideoEncoder {
             } else {
                 &["-c:v", "libx264", "-crf", "18", "-preset", "medium"]
             };
-            let child = Command::new("ffmpeg")
+            let mut command = Command::new("ffmpeg");
+            // In a process group of its own, so that Ctrl-C at the terminal reaches only
+            // stereotrace, which then stops ffmpeg itself and removes its temporary file.
+            #[cfg(unix)]
+            std::os::unix::process::CommandExt::process_group(&mut command, 0);
+            let child = command
                 .args([
                     "-y",
                     "-loglevel",

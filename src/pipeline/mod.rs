@@ -6,6 +6,7 @@
 //! checked and with its scene loaded.
 
 mod edit;
+mod interrupt;
 mod location;
 mod output_spec;
 mod outputs;

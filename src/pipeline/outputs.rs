@@ -219,6 +219,19 @@ impl Writer {
         Ok(files)
     }
 
+    /// Whether this output makes a file of the whole range (a video, a wobble GIF over the
+    /// animation), written by `finish`.
+    pub fn spans_range(&self) -> bool {
+        self.video.is_some()
+            || matches!(
+                self.spec,
+                OutputSpec::WobbleGif {
+                    per_frame: false,
+                    ..
+                }
+            )
+    }
+
     /// Completes outputs that span the range (a wobble GIF over the animation, videos).
     pub fn finish(self) -> Result<Vec<PathBuf>> {
         let mut files = Vec::new();

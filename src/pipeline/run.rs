@@ -3,6 +3,7 @@
 //! scene -> accel -> render -> outputs.
 
 use super::LoadedPipeline;
+use super::interrupt;
 use super::outputs::Writer;
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
@@ -36,11 +37,21 @@ pub struct RunSummary {
     /// Time spent turning traced frames into files (all outputs).
     pub output_seconds: f64,
     pub files: Vec<PathBuf>,
+    /// Temporary files of an earlier run that was killed, removed before this one.
+    pub stale_removed: Vec<PathBuf>,
 }
 
 impl fmt::Display for RunSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let r = &self.rays;
+        if let Some(first) = self.stale_removed.first() {
+            writeln!(
+                f,
+                "warning: removed {} temporary file(s) left by an interrupted run (such as {})",
+                self.stale_removed.len(),
+                first.display()
+            )?;
+        }
         write!(
             f,
             "rendered {} frame(s), {} eye image(s), {} files; {:.1} M rays ({:.1} M primary, {:.1} M secondary, {:.1} M shadow) in {:.2} s: tracing {:.2} s ({:.2} M rays/s), outputs {:.2} s",
@@ -92,8 +103,28 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
             ),
         ));
     }
+    interrupt::install()?;
+    let stale = interrupt::remove_stale_temporaries(&output_dirs(p, opts, start));
     let threads = opts.threads.unwrap_or(spec.render.threads);
-    crate::thread_pool(threads)?.install(|| run_frames(p, opts, start, end))
+    let mut summary = crate::thread_pool(threads)?.install(|| run_frames(p, opts, start, end))?;
+    summary.stale_removed = stale;
+    Ok(summary)
+}
+
+/// The folders this run writes into: `--out`, and those of the outputs' first files and videos.
+fn output_dirs(p: &LoadedPipeline, opts: &RunOptions, start: u32) -> Vec<PathBuf> {
+    let mut dirs = vec![opts.out_dir.clone()];
+    for (t, o) in p.templates.iter().zip(&p.spec.outputs) {
+        for eye in ["left", "right", "center"] {
+            dirs.extend(t.path(&opts.out_dir, start, eye).parent().map(Into::into));
+        }
+        if let Some(v) = o.video() {
+            dirs.extend(opts.out_dir.join(v).parent().map(Into::into));
+        }
+    }
+    dirs.sort();
+    dirs.dedup();
+    dirs
 }
 
 fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Result<RunSummary> {
@@ -127,13 +158,21 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         .collect();
     let mut summary = RunSummary::default();
     let mut log: Vec<Vec<String>> = Vec::new();
-    let mut tracer = FrameTracer::new(p);
+    let mut tracer = FrameTracer::new(p).with_stop(interrupt::flag());
+    let mut finished = None;
     for (k, frame) in (start..=end).enumerate() {
+        if interrupt::requested() {
+            break;
+        }
         tile_bar.reset();
         let views = views_needed(p, &rig, k);
         tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
         tile_bar.set_message(format!("frame {frame}"));
         let (stereo, stats) = tracer.trace(frame, &views, &|_| tile_bar.inc(1));
+        if interrupt::requested() {
+            // Tiles may have been skipped: the frame is not written.
+            break;
+        }
         let mut view_seconds = [0f64; 3];
         for (view, secs) in &stats.view_seconds {
             view_seconds[match *view {
@@ -173,14 +212,42 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         }
         summary.output_seconds += t.elapsed().as_secs_f64();
         summary.frames += 1;
+        finished = Some(frame);
         frame_bar.inc(1);
+    }
+    let log_path = opts.out_dir.join("frame-log.csv");
+    if interrupt::requested() {
+        // Dropping the writers stops their encoders and removes their temporary files.
+        let whole_range = writers.iter().any(Writer::spans_range);
+        drop(writers);
+        write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
+        tile_bar.finish_and_clear();
+        frame_bar.finish_and_clear();
+        let done = match finished {
+            Some(last) => format!(
+                "frames {start}..{last} are finished and kept ({} files)",
+                summary.files.len()
+            ),
+            None => "no frame was finished".to_string(),
+        };
+        let next = finished.map_or(start, |f| f + 1);
+        return Err(Error::Interrupted {
+            message: format!(
+                "{done}, and {} lists them. Continue with --frames {next}..{end}{}",
+                log_path.display(),
+                if whole_range {
+                    " (videos and whole-range GIFs need the whole range: they were not written)"
+                } else {
+                    ""
+                }
+            ),
+        });
     }
     let t = Instant::now();
     for wr in writers {
         summary.files.extend(wr.finish()?);
     }
     summary.output_seconds += t.elapsed().as_secs_f64();
-    let log_path = opts.out_dir.join("frame-log.csv");
     write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
 
     summary.files.push(log_path);

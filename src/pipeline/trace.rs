@@ -12,6 +12,7 @@ use crate::render::{
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// Where a traced frame's time went, and what it traced.
@@ -43,6 +44,8 @@ pub struct FrameTracer<'p> {
     /// The scene's bounds over the pipeline's whole frame range, for the default camera and
     /// head-light (so neither moves with the animation); `None` when neither is used.
     range_bounds: Option<(Vec3, Vec3)>,
+    /// Set to stop tracing (`render`'s Ctrl-C): tiles not started then stay black.
+    stop: Option<&'static AtomicBool>,
 }
 
 impl<'p> FrameTracer<'p> {
@@ -68,7 +71,15 @@ impl<'p> FrameTracer<'p> {
             animations,
             updater,
             range_bounds,
+            stop: None,
         }
+    }
+
+    /// Tiles not yet started are skipped once `stop` is set; a frame traced while it was set is
+    /// incomplete.
+    pub fn with_stop(mut self, stop: &'static AtomicBool) -> FrameTracer<'p> {
+        self.stop = Some(stop);
+        self
     }
 
     /// Traces `views` of `frame`. `on_tile` is called once per finished tile, from any thread.
@@ -180,7 +191,7 @@ impl<'p> FrameTracer<'p> {
                     role,
                 })
                 .collect();
-            let rendered = render_views(&integrator, &films, &|k| on_tile(pass[k]));
+            let rendered = render_views(&integrator, &films, &|k| on_tile(pass[k]), self.stop);
             let secs = t.elapsed().as_secs_f64() / pass.len() as f64;
             stats.rays.add(&rendered.counts);
             if matches!(role, ViewRole::Source) {

@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use smallvec::SmallVec;
 use std::cell::Cell;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 pub const TILE: usize = 16;
 
@@ -88,11 +89,13 @@ pub struct Rendered {
 }
 
 /// Renders one view, or two together (the eyes under `EyeReuse::Paired`). `on_tile(v)` is
-/// called once per finished tile of view `v` (progress bars).
+/// called once per finished tile of view `v` (progress bars). Once `stop` is set, tiles not
+/// yet started are left black: the images are then incomplete.
 pub fn render_views<A: Intersect>(
     integrator: &Integrator<'_, A>,
     views: &[ViewFilm],
     on_tile: &(dyn Fn(usize) + Sync),
+    stop: Option<&AtomicBool>,
 ) -> Rendered {
     let first = views.first().expect("at least one view").film;
     assert!(
@@ -118,10 +121,19 @@ pub fn render_views<A: Intersect>(
         .map(|t| {
             let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-            let counts = Cell::new(RayCounts::default());
-            let (mut radiance_taken, mut misses_taken) = (0u64, 0u64);
             let tw = x1 - x0;
             let mut pixels = vec![vec![Vec3::ZERO; tw * (y1 - y0)]; views.len()];
+            // Once a stop is asked for, tiles not yet started stay black: the caller discards
+            // the frame.
+            if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+                return TileResult {
+                    pixels,
+                    counts: RayCounts::default(),
+                    samples: Vec::new(),
+                };
+            }
+            let counts = Cell::new(RayCounts::default());
+            let (mut radiance_taken, mut misses_taken) = (0u64, 0u64);
             let mut samples = match views[0].role {
                 ViewRole::Source => Vec::with_capacity(tw * (y1 - y0) * spp as usize),
                 _ => Vec::new(),

@@ -1,0 +1,88 @@
+//! Ctrl-C (SIGINT) and SIGTERM during `render`: the first stops the run after the tiles being
+//! traced, keeps every finished frame, writes the frame log and removes every temporary file;
+//! a second one exits at once. Temporaries that a killed run left behind are removed by the
+//! next run that writes into the same folders.
+
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+static REQUESTED: AtomicBool = AtomicBool::new(false);
+
+/// Installs the handler once per process (later calls do nothing).
+pub fn install() -> Result<()> {
+    static INSTALL: Once = Once::new();
+    let mut result = Ok(());
+    INSTALL.call_once(|| {
+        result = ctrlc::set_handler(|| {
+            if REQUESTED.swap(true, Ordering::SeqCst) {
+                // The second request: the user does not want to wait for the current tiles.
+                std::process::exit(130);
+            }
+            eprintln!("\nstopping after the tiles being traced (Ctrl-C again to quit at once)");
+        })
+        .map_err(|e| Error::Internal(format!("cannot handle SIGINT and SIGTERM: {e}")));
+    });
+    result
+}
+
+/// The flag the handler sets; the tracer stops starting tiles once it is set.
+pub fn flag() -> &'static AtomicBool {
+    &REQUESTED
+}
+
+pub fn requested() -> bool {
+    REQUESTED.load(Ordering::SeqCst)
+}
+
+/// The process that made a temporary file, from its name: `.NAME.tmp-PID` (atomic writes) or
+/// `.tmp-PID-NAME` (videos, whose name must keep its extension for ffmpeg).
+fn temporary_owner(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    if let Some(r) = rest.strip_prefix("tmp-") {
+        return r.split('-').next()?.parse().ok();
+    }
+    rest.rsplit_once(".tmp-")?.1.parse().ok()
+}
+
+/// Removes the temporary files in `dirs` whose process no longer runs (a run that was killed),
+/// and returns them. Where processes cannot be looked up (no `/proc`), nothing is removed.
+pub fn remove_stale_temporaries(dirs: &[PathBuf]) -> Vec<PathBuf> {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return Vec::new();
+    }
+    let mut removed = Vec::new();
+    for dir in dirs {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let stale = temporary_owner(&name).is_some_and(|pid| {
+                pid != std::process::id() && !proc.join(pid.to_string()).exists()
+            });
+            if stale && e.path().is_file() && std::fs::remove_file(e.path()).is_ok() {
+                removed.push(e.path());
+            }
+        }
+    }
+    removed.sort();
+    removed.dedup();
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporary_names_give_their_process() {
+        assert_eq!(temporary_owner(".f_0001_left.png.tmp-4242"), Some(4242));
+        assert_eq!(temporary_owner(".tmp-4242-anaglyph.mp4"), Some(4242));
+        assert_eq!(temporary_owner("f_0001_left.png"), None);
+        assert_eq!(temporary_owner(".hidden"), None);
+        assert_eq!(temporary_owner(".a.tmp-x"), None);
+    }
+}
