@@ -22,6 +22,8 @@ pub struct SceneInfo {
     pub point_lights: usize,
     pub spot_lights: usize,
     pub directional_lights: usize,
+    /// Each placed camera as `[scene] camera` takes it: its node or camera name, else its index
+    /// into the glTF cameras (with the node it is on).
     pub cameras: Vec<String>,
     pub skins: usize,
     pub morph_targets: usize,
@@ -56,7 +58,7 @@ pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
                     .name
                     .clone()
                     .or_else(|| scene.cameras[c.camera].name.clone())
-                    .unwrap_or_else(|| format!("node {}", c.node))
+                    .unwrap_or_else(|| format!("{} (unnamed, on node {})", c.camera, c.node))
             })
             .collect(),
         skins: scene.skins.len(),
@@ -92,25 +94,55 @@ impl fmt::Display for SceneInfo {
             "lights      {} point, {} spot, {} directional",
             self.point_lights, self.spot_lights, self.directional_lights
         )?;
-        writeln!(f, "cameras     {} {:?}", self.cameras.len(), self.cameras)?;
+        if self.point_lights + self.spot_lights + self.directional_lights == 0 {
+            writeln!(
+                f,
+                "            (none: a render lights the scene with a head-light)"
+            )?;
+        }
+        if self.cameras.is_empty() {
+            writeln!(
+                f,
+                "cameras     none (a render frames the scene with a default camera)"
+            )?;
+        } else {
+            writeln!(f, "cameras     {}", self.cameras.join(", "))?;
+        }
         writeln!(f, "skins       {}", self.skins)?;
         writeln!(
             f,
-            "morph targets (max per primitive) {}",
+            "morph targets {} (the most on one primitive)",
             self.morph_targets
         )?;
-        writeln!(f, "animations  {}", self.animations.len())?;
-        for a in &self.animations {
+        if self.animations.is_empty() {
+            writeln!(f, "animations  none")?;
+        } else {
             writeln!(
                 f,
-                "  {:<20} T{} R{} S{} W{} {:?} {:.2}s",
-                a.name.as_deref().unwrap_or("(unnamed)"),
-                a.translation_channels,
-                a.rotation_channels,
-                a.scale_channels,
-                a.weight_channels,
-                a.interpolations,
-                a.duration
+                "animations  {} (index: name, length, what it animates)",
+                self.animations.len()
+            )?;
+        }
+        for (i, a) in self.animations.iter().enumerate() {
+            let channels: Vec<String> = [
+                (a.translation_channels, "translation"),
+                (a.rotation_channels, "rotation"),
+                (a.scale_channels, "scale"),
+                (a.weight_channels, "morph weight"),
+            ]
+            .iter()
+            .filter(|(n, _)| *n > 0)
+            .map(|(n, what)| format!("{n} {what}"))
+            .collect();
+            writeln!(
+                f,
+                "  {i}: {} {:.2} s; channels: {}; {}",
+                a.name
+                    .as_deref()
+                    .map_or("(unnamed)".to_string(), |n| format!("{n:?}")),
+                a.duration,
+                channels.join(", "),
+                a.interpolations.join(" ").to_lowercase()
             )?;
         }
         if let Some(s) = &self.accel {

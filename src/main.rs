@@ -1,124 +1,19 @@
 //! Command line: parses arguments, calls the library, prints its reports and errors, and maps
 //! errors to exit statuses. Every report is a `Display` of a library type.
 
-use clap::{Parser, Subcommand};
+use clap::Parser;
 use std::io::IsTerminal;
-use std::path::PathBuf;
 use std::process::ExitCode;
-use stereotrace::accel::SplitMethod;
 use stereotrace::bench::{accel, memory, sweep};
-use stereotrace::pipeline::{LoadedPipeline, RunOptions, parse_frame_range};
+use stereotrace::pipeline::{LoadedPipeline, RunOptions};
 use stereotrace::{Error, Result, compare, info, thread_pool};
+
+mod cli;
+use cli::{BenchCommand, Cli, Command};
 
 /// Counts heap bytes so that `bench sweep` can report each combination's peak.
 #[global_allocator]
 static ALLOCATOR: memory::CountingAllocator = memory::CountingAllocator;
-
-#[derive(Parser)]
-#[command(
-    name = "stereotrace",
-    version,
-    about = "Stereo ray tracing of animated glTF 2.0 scenes"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Render a pipeline: every frame, every eye, every output.
-    Render {
-        /// Pipeline file (TOML).
-        pipeline: PathBuf,
-        /// Frame range A..B (inclusive), overriding the pipeline's [frames].
-        #[arg(long, value_parser = parse_frame_range)]
-        frames: Option<(u32, u32)>,
-        /// Worker threads (0 = all cores), overriding [render] threads.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Output directory; output paths are relative to it.
-        #[arg(long, default_value = ".")]
-        out: PathBuf,
-        /// No progress bars and no summary line.
-        #[arg(long)]
-        quiet: bool,
-    },
-    /// Validate a pipeline and its scene without rendering.
-    Check { pipeline: PathBuf },
-    /// Write a commented pipeline for a scene (its cameras, animations and frame range filled
-    /// in, every output kind present): `stereotrace new scene.glb -o my.toml`.
-    New {
-        /// The glTF scene (.gltf or .glb).
-        scene: PathBuf,
-        /// Pipeline file to create (default: standard output).
-        #[arg(short, long)]
-        output: Option<PathBuf>,
-    },
-    /// Compare two images with OpenImageIO idiff's rules and exit statuses (0 pass, 1 warning,
-    /// 2 failure, 4 unreadable input); multi-view EXR files are compared view by view.
-    Compare {
-        a: PathBuf,
-        b: PathBuf,
-        #[command(flatten)]
-        thresholds: compare::Thresholds,
-        /// Write the absolute difference (times --scale) as a float EXR, or as a grey PNG of
-        /// each pixel's largest channel difference when DIFF ends in .png (one file per view,
-        /// the view name added before the extension when there are several).
-        #[arg(long)]
-        diff: Option<PathBuf>,
-        /// Scale of the difference image.
-        #[arg(long, default_value_t = 1.0)]
-        scale: f32,
-        /// Machine-readable report on stdout.
-        #[arg(long)]
-        json: bool,
-    },
-    /// Speed measurements.
-    #[command(subcommand)]
-    Bench(BenchCommand),
-    /// Describe a glTF scene.
-    Info {
-        scene: PathBuf,
-        /// Also build the kd-tree and print its statistics.
-        #[arg(long)]
-        accel: bool,
-        /// Split strategy for --accel.
-        #[arg(long, value_enum, default_value = "sah")]
-        split: SplitMethod,
-        /// Machine-readable output.
-        #[arg(long)]
-        json: bool,
-    },
-}
-
-#[derive(Subcommand)]
-enum BenchCommand {
-    /// kd-tree build time and ray throughput per split strategy, with baselines on identical rays.
-    Accel {
-        #[command(flatten)]
-        options: accel::AccelBenchOptions,
-        /// Worker threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-    },
-    /// Chart a table written by `bench accel --csv` without measuring again.
-    ChartAccel {
-        /// The CSV table.
-        table: PathBuf,
-        /// Chart path without extension: CHART.svg and CHART.png are written.
-        chart: PathBuf,
-    },
-    /// Render a pipeline for every combination of swept keys; time each and measure its error
-    /// against a high-quality render. Writes results.csv, summary.csv and chart.svg/.png.
-    Sweep {
-        #[command(flatten)]
-        options: sweep::SweepOptions,
-        /// Worker threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-    },
-}
 
 fn main() -> ExitCode {
     match run(Cli::parse()) {
@@ -146,9 +41,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             quiet,
         } => {
             let p = LoadedPipeline::load(&pipeline)?;
-            if !quiet {
-                warn_all(&p.warnings);
-            }
+            // Warnings say what the render will not do as asked: --quiet keeps them.
+            warn_all(&p.warnings);
             let opts = RunOptions {
                 frames,
                 threads,

@@ -310,3 +310,31 @@ fn a_scene_given_where_a_pipeline_is_expected() {
     let p = c.file("p.toml", [0xff, 0xfe, 0x00, 0x81]);
     c.fails(&p, &["p.toml", "not a pipeline", "UTF-8"]);
 }
+
+#[test]
+fn a_bad_value_inside_an_output_points_at_its_key() {
+    let c = Case::new("output-value");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let text = pipeline("s.gltf", "")
+        .replace("kind = \"png\"", "kind = \"anaglyph\"\nmethod = \"bogus\"")
+        .replace("img_{eye}.png", "a.png");
+    let p = c.file("p.toml", text);
+    c.fails(&p, &["p.toml:10:10:", "bogus"]);
+}
+
+#[test]
+fn an_unknown_animation_lists_the_ones_there_are() {
+    let c = Case::new("animation-name");
+    let scene = common::data().join("scenes/InterpolationTest/InterpolationTest.glb");
+    let text = pipeline(&scene.to_string_lossy(), "")
+        .replace("[render]", "animation = \"Spinning\"\n[render]");
+    let p = c.file("p.toml", text);
+    c.fails(
+        &p,
+        &[
+            "p.toml:3:",
+            "no animation named 'Spinning'",
+            "\"Step Scale\"",
+        ],
+    );
+}

@@ -215,9 +215,10 @@ impl fmt::Display for LoadedPipeline {
     }
 }
 
-/// Parses a command-line frame range `A..B` (inclusive).
+/// Parses a command-line frame range `A..B` (inclusive), or a single frame `N`.
 pub fn parse_frame_range(s: &str) -> std::result::Result<(u32, u32), String> {
-    let (a, b) = s.split_once("..").ok_or("expected A..B, e.g. 0..23")?;
+    // A single frame N is N..N.
+    let (a, b) = s.split_once("..").unwrap_or((s, s));
     let a: u32 = a
         .trim()
         .parse()

@@ -99,7 +99,8 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
         return Err(Error::input(
             &p.file,
             format!(
-                "output {i} has no {{frame}} in its path but frames {start}..{end} are requested"
+                "[[output]] number {} has no {{frame}} in its path but frames {start}..{end} are requested",
+                i + 1
             ),
         ));
     }
@@ -138,15 +139,18 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     } else {
         ProgressDrawTarget::hidden()
     });
+    // Both bars take the terminal's width (a fixed width wrapped on narrow terminals). The
+    // range's elapsed time and estimate sit on the frame bar; a frame's tiles finish too fast
+    // and too unevenly for an estimate of their own.
     let frame_bar = bar(
         &multi,
         (end - start + 1) as u64,
-        "frames {bar:30} {pos}/{len} eta {eta}",
+        "{elapsed_precise} frames [{wide_bar}] {pos}/{len} eta {eta_precise}",
     );
     let tile_bar = bar(
         &multi,
         tile_count(w, h) as u64,
-        "tiles  {bar:30} {pos}/{len} eta {eta} {msg}",
+        "         tiles  [{wide_bar}] {pos}/{len} {msg}",
     );
 
     let mut writers: Vec<Writer> = p

@@ -144,7 +144,8 @@ impl Pipeline {
     /// Parses pipeline text; errors carry the file, line and column.
     pub fn parse(file: &Path, src: &str) -> Result<Pipeline> {
         toml::from_str::<Pipeline>(src).map_err(|e| {
-            let (line, column) = e.span().map_or((1, 1), |s| line_column(src, s.start));
+            let at = e.span().map(|span| named_in(src, span, e.message()));
+            let (line, column) = at.map_or((1, 1), |at| line_column(src, at));
             Error::Pipeline {
                 file: file.to_path_buf(),
                 line,
@@ -153,6 +154,29 @@ impl Pipeline {
             }
         })
     }
+}
+
+/// Where an error inside a table points: serde reports a bad value of an `[[output]]` (whose
+/// `kind` picks its keys) at the whole table, so the name the message quotes in backticks (the
+/// unknown variant or key) is looked up in the table's text, as a quoted value or a key. The
+/// table's start if it is not there.
+fn named_in(src: &str, span: std::ops::Range<usize>, message: &str) -> usize {
+    let quoted = message.split('`').nth(1).filter(|q| !q.is_empty());
+    // The span may be the table's header alone: look up to the next table.
+    let rest = src.get(span.start..).unwrap_or("");
+    let end = rest
+        .get(1..)
+        .and_then(|r| r.find("\n[").map(|i| i + 1))
+        .unwrap_or(rest.len())
+        .max(span.len().min(rest.len()));
+    let text = &rest[..end];
+    quoted
+        .and_then(|q| {
+            [format!("\"{q}\""), format!("'{q}'"), format!("{q} =")]
+                .iter()
+                .find_map(|needle| text.find(needle.as_str()))
+        })
+        .map_or(span.start, |i| span.start + i)
 }
 
 #[cfg(test)]

@@ -116,7 +116,11 @@ pub(super) fn validate_values(
             if a.render(f.start, "left") == b.render(f.start, "left") {
                 return Err(invalid(
                     &[N("output"), Key::Index(j), N("path")],
-                    format!("output {j} writes the same files as output {i}"),
+                    format!(
+                        "[[output]] number {} writes the same files as [[output]] number {}",
+                        j + 1,
+                        i + 1
+                    ),
                 ));
             }
         }
@@ -193,6 +197,21 @@ pub(super) fn check_animation(
     scene: &Scene,
 ) -> std::result::Result<(), Invalid<'static>> {
     let keys = [Key::Name("scene"), Key::Name("animation")];
+    // What there is to choose from, for the messages.
+    let names: Vec<String> = scene
+        .animations
+        .iter()
+        .enumerate()
+        .map(|(i, a)| match &a.name {
+            Some(n) => format!("{i}: {n:?}"),
+            None => format!("{i}: unnamed"),
+        })
+        .collect();
+    let choices = if names.is_empty() {
+        "the scene has no animation".to_string()
+    } else {
+        format!("the scene has {}, or \"all\" or \"none\"", names.join(", "))
+    };
     match &p.scene.animation {
         Selector::Name(n) if n == "none" => return Ok(()),
         Selector::Name(n) if n == "all" => {}
@@ -204,10 +223,7 @@ pub(super) fn check_animation(
             {
                 return Err(invalid(
                     &keys,
-                    format!(
-                        "no animation named '{n}' (the scene has {})",
-                        scene.animations.len()
-                    ),
+                    format!("no animation named '{n}' ({choices})"),
                 ));
             }
         }
@@ -215,10 +231,7 @@ pub(super) fn check_animation(
             if *i >= scene.animations.len() {
                 return Err(invalid(
                     &keys,
-                    format!(
-                        "animation index {i} is out of range (the scene has {})",
-                        scene.animations.len()
-                    ),
+                    format!("animation index {i} is out of range ({choices})"),
                 ));
             }
         }

@@ -1,0 +1,132 @@
+//! The command line's arguments and help: what each command and argument is, with examples.
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use stereotrace::accel::SplitMethod;
+use stereotrace::bench::{accel, sweep};
+use stereotrace::compare;
+use stereotrace::pipeline::parse_frame_range;
+
+#[derive(Parser)]
+#[command(
+    name = "stereotrace",
+    version,
+    about = "Stereo ray tracing of animated glTF 2.0 scenes",
+    after_help = "Examples:\n  \
+      stereotrace new model.glb -o my.toml      write a pipeline for a model\n  \
+      stereotrace check my.toml                 validate it and load its scene\n  \
+      stereotrace render my.toml --out out      render every frame into out/\n  \
+      stereotrace render my.toml --frames 12    render frame 12 only\n  \
+      stereotrace info model.glb                what the model holds\n  \
+      stereotrace compare a.exr b.exr --fail 0.02 --diff err.png\n\n\
+      The README's Pipeline reference lists every key of a pipeline file."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render a pipeline: every frame, every eye, every output.
+    #[command(after_help = "Examples:\n  \
+        stereotrace render pipelines/default.toml\n  \
+        stereotrace render my.toml --out out --frames 0..23 --threads 8\n\n\
+        Ctrl-C stops after the tiles being traced and keeps every finished frame (exit 130).")]
+    Render {
+        /// Pipeline file (TOML).
+        pipeline: PathBuf,
+        /// Frame range A..B (inclusive) or one frame N, overriding the pipeline's [frames].
+        #[arg(long, value_parser = parse_frame_range)]
+        frames: Option<(u32, u32)>,
+        /// Worker threads (0 = all cores), overriding [render] threads.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Output directory; output paths are relative to it.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+        /// No progress bars and no summary line (warnings are still printed).
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Validate a pipeline and its scene without rendering.
+    Check {
+        /// Pipeline file (TOML).
+        pipeline: PathBuf,
+    },
+    /// Write a commented pipeline for a scene (its cameras, animations and frame range filled
+    /// in, every output kind present): `stereotrace new scene.glb -o my.toml`.
+    New {
+        /// The glTF scene (.gltf or .glb).
+        scene: PathBuf,
+        /// Pipeline file to create (default: standard output).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
+    /// Compare two images with OpenImageIO idiff's rules and exit statuses (0 pass, 1 warning,
+    /// 2 failure, 4 unreadable input); multi-view EXR files are compared view by view.
+    Compare {
+        /// First image (EXR, PNG or JPEG).
+        a: PathBuf,
+        /// Second image, compared with the first.
+        b: PathBuf,
+        #[command(flatten)]
+        thresholds: compare::Thresholds,
+        /// Write the absolute difference (times --scale) as a float EXR, or as a grey PNG of
+        /// each pixel's largest channel difference when DIFF ends in .png (one file per view,
+        /// the view name added before the extension when there are several).
+        #[arg(long)]
+        diff: Option<PathBuf>,
+        /// Scale of the difference image.
+        #[arg(long, default_value_t = 1.0)]
+        scale: f32,
+        /// Machine-readable report on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Speed measurements.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+    /// Describe a glTF scene.
+    Info {
+        /// The glTF scene (.gltf or .glb).
+        scene: PathBuf,
+        /// Also build the kd-tree and print its statistics.
+        #[arg(long)]
+        accel: bool,
+        /// Split strategy for --accel.
+        #[arg(long, value_enum, default_value = "sah")]
+        split: SplitMethod,
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// kd-tree build time and ray throughput per split strategy, with baselines on identical rays.
+    Accel {
+        #[command(flatten)]
+        options: accel::AccelBenchOptions,
+        /// Worker threads (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// Chart a table written by `bench accel --csv` without measuring again.
+    ChartAccel {
+        /// The CSV table.
+        table: PathBuf,
+        /// Chart path without extension: CHART.svg and CHART.png are written.
+        chart: PathBuf,
+    },
+    /// Render a pipeline for every combination of swept keys; time each and measure its error
+    /// against a high-quality render. Writes results.csv, summary.csv and chart.svg/.png.
+    Sweep {
+        #[command(flatten)]
+        options: sweep::SweepOptions,
+        /// Worker threads (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+}
