@@ -15,11 +15,50 @@ use cli::{BenchCommand, Cli, Command};
 #[global_allocator]
 static ALLOCATOR: memory::CountingAllocator = memory::CountingAllocator;
 
+/// Writes a report line to standard output (see `emit`).
+macro_rules! out {
+    ($($arg:tt)*) => { emit(format_args!($($arg)*), true) };
+}
+
+/// Writes a message line to standard error; a standard error that cannot be written is no reason
+/// to fail a render.
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// Writes to standard output. A closed pipe (`stereotrace info x.glb | head -1`) ends the program
+/// quietly, as other command-line tools do; any other failure (a full disk) exits 1, saying so.
+fn emit(args: std::fmt::Arguments, newline: bool) {
+    use std::io::Write as _;
+    let mut stdout = std::io::stdout().lock();
+    let written = stdout
+        .write_fmt(args)
+        .and_then(|()| {
+            if newline {
+                stdout.write_all(b"\n")
+            } else {
+                Ok(())
+            }
+        })
+        .and_then(|()| stdout.flush());
+    match written {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+        Err(e) => {
+            note!("error: cannot write to standard output: {e}");
+            std::process::exit(1);
+        }
+    }
+}
+
 fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e}");
+            note!("error: {e}");
             ExitCode::from(e.exit_code())
         }
     }
@@ -27,7 +66,7 @@ fn main() -> ExitCode {
 
 fn warn_all(warnings: &[String]) {
     for w in warnings {
-        eprintln!("warning: {w}");
+        note!("warning: {w}");
     }
 }
 
@@ -51,18 +90,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
             };
             let summary = stereotrace::pipeline::run(&p, &opts)?;
             if !quiet {
-                eprintln!("{summary}");
+                note!("{summary}");
             }
         }
         Command::New { scene, output } => {
             if let Some(text) = stereotrace::pipeline::new_pipeline(&scene, output.as_deref())? {
-                print!("{text}");
+                emit(format_args!("{text}"), false);
             }
         }
         Command::Check { pipeline } => {
             let p = LoadedPipeline::load(&pipeline)?;
             warn_all(&p.warnings);
-            println!("{p}");
+            out!("{p}");
         }
         Command::Compare {
             a,
@@ -80,7 +119,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             )
             .map_err(|e| Error::Compare(Box::new(e)))?;
             if json {
-                println!(
+                out!(
                     "{}",
                     serde_json::to_string_pretty(&result).map_err(internal)?
                 );
@@ -91,27 +130,27 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     thresholds: &thresholds,
                     result: &result,
                 };
-                println!("{report}");
+                out!("{report}");
             }
             return Ok(ExitCode::from(result.verdict as u8));
         }
         Command::Bench(BenchCommand::Accel { options, threads }) => {
-            println!("{}", accel::csv_header());
+            out!("{}", accel::csv_header());
             let rows = thread_pool(threads)?
-                .install(|| accel::bench_accel(&options, |row| println!("{}", row.csv())))?;
+                .install(|| accel::bench_accel(&options, |row| out!("{}", row.csv())))?;
             if let Some(stem) = &options.chart {
                 accel::chart(&rows, stem)?;
             }
         }
         Command::Bench(BenchCommand::ChartAccel { table, chart }) => {
             accel::chart(&accel::read_table(&table)?, &chart)?;
-            eprintln!("wrote {0}.svg and {0}.png", chart.display());
+            note!("wrote {0}.svg and {0}.png", chart.display());
         }
         Command::Bench(BenchCommand::Sweep { options, threads }) => {
-            let results = thread_pool(threads)?
-                .install(|| sweep::sweep(&options, |line| eprintln!("{line}")))?;
-            println!("{}", sweep::Table(&results));
-            eprintln!(
+            let results =
+                thread_pool(threads)?.install(|| sweep::sweep(&options, |line| note!("{line}")))?;
+            out!("{}", sweep::Table(&results));
+            note!(
                 "wrote {0}/results.csv, {0}/summary.csv, {0}/chart.svg and {0}/chart.png",
                 options.out_dir.display()
             );
@@ -125,12 +164,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let s = stereotrace::scene::Scene::load(&scene)?;
             let report = info::scene_info(&s, accel.then_some(split));
             if json {
-                println!(
+                out!(
                     "{}",
                     serde_json::to_string_pretty(&report).map_err(internal)?
                 );
             } else {
-                print!("{report}");
+                emit(format_args!("{report}"), false);
             }
         }
     }

@@ -338,3 +338,73 @@ fn an_unknown_animation_lists_the_ones_there_are() {
         ],
     );
 }
+
+/// A value out of the schema's range that would give infinite, NaN or negative radiance is
+/// refused at load, naming the object.
+#[test]
+fn factors_and_lights_that_would_give_non_finite_or_negative_radiance() {
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(&str, Edit, &str); 5] = [
+        (
+            "base-colour",
+            |g| {
+                g["materials"] =
+                    json!([{"pbrMetallicRoughness": {"baseColorFactor": [1e39, 1.0, 1.0, 1.0]}}]);
+                g["meshes"][0]["primitives"][0]["material"] = json!(0);
+            },
+            "materials[0].pbrMetallicRoughness.baseColorFactor",
+        ),
+        (
+            "emissive",
+            |g| {
+                g["materials"] = json!([{"emissiveFactor": [-1.0, 0.0, 0.0]}]);
+                g["meshes"][0]["primitives"][0]["material"] = json!(0);
+            },
+            "materials[0].emissiveFactor",
+        ),
+        (
+            "light-intensity",
+            |g| {
+                g["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+                g["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 1e39}]}});
+                g["nodes"][1]["extensions"] = json!({"KHR_lights_punctual": {"light": 0}});
+            },
+            "lights[0].intensity",
+        ),
+        (
+            "light-colour",
+            |g| {
+                g["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+                g["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "point", "color": [1.0, -2.0, 1.0]}]}});
+                g["nodes"][1]["extensions"] = json!({"KHR_lights_punctual": {"light": 0}});
+            },
+            "lights[0].color",
+        ),
+        (
+            "texcoord",
+            |g| {
+                let uv: Vec<u8> = [0.0f32, 0.0, f32::NAN, 0.0, 1.0, 1.0]
+                    .iter()
+                    .flat_map(|f| f.to_le_bytes())
+                    .collect();
+                let data = base64::engine::general_purpose::STANDARD.encode(&uv);
+                g["buffers"].as_array_mut().unwrap().push(json!({"byteLength": 24, "uri": format!("data:application/octet-stream;base64,{data}")}));
+                g["bufferViews"]
+                    .as_array_mut()
+                    .unwrap()
+                    .push(json!({"buffer": 1, "byteLength": 24}));
+                g["accessors"].as_array_mut().unwrap().push(
+                    json!({"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}),
+                );
+                g["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(1);
+            },
+            "TEXCOORD_0",
+        ),
+    ];
+    for (name, edit, object) in cases {
+        let c = Case::new(&format!("radiance-{name}"));
+        c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, edit));
+        let p = c.file("p.toml", pipeline("s.gltf", ""));
+        c.fails(&p, &["s.gltf", object]);
+    }
+}

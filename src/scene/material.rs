@@ -169,6 +169,44 @@ pub(super) fn load_materials(
             ignored.insert("transmissionTexture");
         }
         let bc = pbr.base_color_factor();
+        let index = m.index().unwrap_or(0);
+        // The schema's ranges: no factor may give infinite, NaN or negative radiance.
+        let in_unit = |key: &str, values: &[f32]| {
+            if values.iter().all(|v| (0.0..=1.0).contains(v)) {
+                Ok(())
+            } else {
+                Err(Error::scene(
+                    file,
+                    format!("materials[{index}].{key}"),
+                    format!("must be numbers in [0, 1], got {values:?}"),
+                ))
+            }
+        };
+        in_unit("pbrMetallicRoughness.baseColorFactor", &bc)?;
+        in_unit("emissiveFactor", &m.emissive_factor())?;
+        in_unit(
+            "pbrMetallicRoughness.metallicFactor",
+            &[pbr.metallic_factor()],
+        )?;
+        in_unit(
+            "pbrMetallicRoughness.roughnessFactor",
+            &[pbr.roughness_factor()],
+        )?;
+        if let Some(t) = &transmission {
+            in_unit(
+                "extensions.KHR_materials_transmission.transmissionFactor",
+                &[t.transmission_factor()],
+            )?;
+        }
+        if let Some(ior) = m.ior()
+            && !(ior.is_finite() && ior > 0.0)
+        {
+            return Err(Error::scene(
+                file,
+                format!("materials[{index}].extensions.KHR_materials_ior.ior"),
+                format!("must be a finite number > 0, got {ior}"),
+            ));
+        }
         materials.push(Material {
             name: m.name().map(str::to_owned),
             base_color: Vec4::from(bc),

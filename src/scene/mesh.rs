@@ -132,12 +132,9 @@ fn load_primitive(
     for (set, slot) in tex_coords.iter_mut().enumerate() {
         if let Some(it) = reader.read_tex_coords(set as u32) {
             let uv: Vec<Vec2> = it.into_f32().map(Vec2::from).collect();
-            check_count(
-                file,
-                &format!("{object}.attributes.TEXCOORD_{set}"),
-                uv.len(),
-                n,
-            )?;
+            let attribute = format!("{object}.attributes.TEXCOORD_{set}");
+            check_count(file, &attribute, uv.len(), n)?;
+            check_finite(file, &attribute, &uv)?;
             *slot = Some(uv);
         }
     }
@@ -245,14 +242,35 @@ fn check_count(file: &Path, object: &str, got: usize, want: usize) -> Result<()>
     }
 }
 
-fn check_finite(file: &Path, object: &str, values: &[Vec3]) -> Result<()> {
-    match values.iter().position(|v| !v.is_finite()) {
+fn check_finite<T: Finite + std::fmt::Debug>(
+    file: &Path,
+    object: &str,
+    values: &[T],
+) -> Result<()> {
+    match values.iter().position(|v| !v.finite()) {
         None => Ok(()),
         Some(i) => Err(Error::scene(
             file,
             object,
             format!("element {i} is not finite ({:?})", values[i]),
         )),
+    }
+}
+
+/// Vectors whose components can be checked for NaN and infinity.
+trait Finite {
+    fn finite(&self) -> bool;
+}
+
+impl Finite for Vec3 {
+    fn finite(&self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Finite for Vec2 {
+    fn finite(&self) -> bool {
+        self.is_finite()
     }
 }
 

@@ -172,7 +172,8 @@ impl Scene {
         check_hierarchy(path, &nodes, &roots)?;
         let lights = document
             .lights()
-            .map(|ls| ls.map(load_light).collect())
+            .map(|ls| ls.map(|l| load_light(path, l)).collect::<Result<Vec<_>>>())
+            .transpose()?
             .unwrap_or_default();
         let mut cameras = Vec::new();
         for c in document.cameras() {
@@ -285,8 +286,36 @@ fn load_node(n: gltf::Node) -> Node {
     }
 }
 
-fn load_light(l: gltf::khr_lights_punctual::Light) -> LightDef {
+/// A light, its values checked against KHR_lights_punctual's schema (colour in [0, 1],
+/// intensity >= 0, range > 0), so that no light gives infinite, NaN or negative radiance.
+fn load_light(path: &Path, l: gltf::khr_lights_punctual::Light) -> Result<LightDef> {
     use gltf::khr_lights_punctual::Kind;
+    let object = |key: &str| format!("extensions.KHR_lights_punctual.lights[{}].{key}", l.index());
+    let color = Vec3::from(l.color());
+    if !(color.cmpge(Vec3::ZERO).all() && color.cmple(Vec3::ONE).all()) {
+        return Err(Error::scene(
+            path,
+            object("color"),
+            format!("must be three numbers in [0, 1], got {color:?}"),
+        ));
+    }
+    let intensity = l.intensity();
+    if !(intensity >= 0.0 && (color * intensity).is_finite()) {
+        return Err(Error::scene(
+            path,
+            object("intensity"),
+            format!("must be a finite number >= 0, got {intensity}"),
+        ));
+    }
+    if let Some(r) = l.range()
+        && !(r.is_finite() && r > 0.0)
+    {
+        return Err(Error::scene(
+            path,
+            object("range"),
+            format!("must be a finite number > 0, got {r}"),
+        ));
+    }
     let kind = match l.kind() {
         Kind::Point => LightKind::Point,
         Kind::Directional => LightKind::Directional,
@@ -298,13 +327,13 @@ fn load_light(l: gltf::khr_lights_punctual::Light) -> LightDef {
             outer_cone: outer_cone_angle,
         },
     };
-    LightDef {
+    Ok(LightDef {
         name: l.name().map(str::to_owned),
         kind,
-        color: Vec3::from(l.color()),
-        intensity: l.intensity(),
+        color,
+        intensity,
         range: l.range(),
-    }
+    })
 }
 
 /// The nodes to render: the default scene, else the first scene, else every parentless node.
