@@ -344,7 +344,7 @@ fn an_unknown_animation_lists_the_ones_there_are() {
 #[test]
 fn factors_and_lights_that_would_give_non_finite_or_negative_radiance() {
     type Edit = fn(&mut serde_json::Value);
-    let cases: [(&str, Edit, &str); 5] = [
+    let cases: [(&str, Edit, &str); 6] = [
         (
             "base-colour",
             |g| {
@@ -399,6 +399,28 @@ fn factors_and_lights_that_would_give_non_finite_or_negative_radiance() {
                 g["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(1);
             },
             "TEXCOORD_0",
+        ),
+        (
+            "vertex-colour",
+            |g| {
+                let rgba: Vec<u8> = [
+                    1.0f32, 1.0, 1.0, 1.0, -5.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0,
+                ]
+                .iter()
+                .flat_map(|f| f.to_le_bytes())
+                .collect();
+                let data = base64::engine::general_purpose::STANDARD.encode(&rgba);
+                g["buffers"].as_array_mut().unwrap().push(json!({"byteLength": 48, "uri": format!("data:application/octet-stream;base64,{data}")}));
+                g["bufferViews"]
+                    .as_array_mut()
+                    .unwrap()
+                    .push(json!({"buffer": 1, "byteLength": 48}));
+                g["accessors"].as_array_mut().unwrap().push(
+                    json!({"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC4"}),
+                );
+                g["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(1);
+            },
+            "COLOR_0",
         ),
     ];
     for (name, edit, object) in cases {

@@ -141,7 +141,20 @@ fn load_primitive(
     let colors = match reader.read_colors(0) {
         Some(it) => {
             let c: Vec<Vec4> = it.into_rgba_f32().map(Vec4::from).collect();
-            check_count(file, &format!("{object}.attributes.COLOR_0"), c.len(), n)?;
+            let attribute = format!("{object}.attributes.COLOR_0");
+            check_count(file, &attribute, c.len(), n)?;
+            // The glTF specification's range for colours; outside it radiance would turn
+            // negative or infinite.
+            if let Some(i) = c
+                .iter()
+                .position(|v| !(v.cmpge(Vec4::ZERO).all() && v.cmple(Vec4::ONE).all()))
+            {
+                return Err(Error::scene(
+                    file,
+                    attribute,
+                    format!("element {i} is outside [0, 1] ({:?})", c[i]),
+                ));
+            }
             Some(c)
         }
         None => None,
