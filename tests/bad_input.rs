@@ -430,3 +430,88 @@ fn factors_and_lights_that_would_give_non_finite_or_negative_radiance() {
         c.fails(&p, &["s.gltf", object]);
     }
 }
+
+/// Documents on which the glTF crate's validation or readers panic are refused before it reads
+/// them, naming the object, in `render`, `check` and `info` alike.
+#[test]
+fn documents_that_would_panic_the_gltf_reader() {
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(&str, Edit, &str); 5] = [
+        (
+            "float-indices",
+            |g| {
+                g["accessors"].as_array_mut().unwrap().push(
+                    json!({"bufferView": 0, "componentType": 5126, "count": 3, "type": "SCALAR"}),
+                );
+                g["meshes"][0]["primitives"][0]["indices"] = json!(1);
+            },
+            "meshes[0].primitives[0].indices",
+        ),
+        (
+            "channel-node",
+            |g| {
+                g["accessors"].as_array_mut().unwrap().push(
+                    json!({"bufferView": 0, "componentType": 5126, "count": 1, "type": "SCALAR"}),
+                );
+                g["animations"] = json!([{"channels": [{"sampler": 0, "target": {"node": 7, "path": "translation"}}], "samplers": [{"input": 1, "output": 0}]}]);
+            },
+            "animations[0].channels[0].target.node",
+        ),
+        (
+            "channel-path",
+            |g| {
+                g["accessors"].as_array_mut().unwrap().push(
+                    json!({"bufferView": 0, "componentType": 5126, "count": 1, "type": "SCALAR"}),
+                );
+                g["animations"] = json!([{"channels": [{"sampler": 0, "target": {"node": 0, "path": "color"}}], "samplers": [{"input": 1, "output": 0}]}]);
+            },
+            "animations[0].channels[0].target.path",
+        ),
+        (
+            "position-index",
+            |g| g["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(99),
+            "attributes.POSITION: 99 is not an index into accessors",
+        ),
+        (
+            "position-vec2",
+            |g| {
+                g["accessors"][0]["type"] = json!("VEC2");
+                g["accessors"][0]["count"] = json!(4);
+            },
+            "POSITION must be VEC3",
+        ),
+    ];
+    for (name, edit, object) in cases {
+        let c = Case::new(&format!("gltf-{name}"));
+        let scene = c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, edit));
+        let p = c.file("p.toml", pipeline("s.gltf", ""));
+        c.fails(&p, &["s.gltf", object]);
+        for command in ["check", "info"] {
+            let target = if command == "info" { &scene } else { &p };
+            let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+                .arg(command)
+                .arg(target)
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{name} {command}: {stderr}");
+            assert!(stderr.contains(object), "{name} {command}: {stderr}");
+        }
+    }
+}
+
+#[test]
+fn a_glb_whose_header_lies_about_its_length() {
+    let c = Case::new("glb-length");
+    let mut glb = std::fs::read(common::data().join("scenes/Box/Box.glb")).unwrap();
+    glb.extend_from_slice(&[0; 8]);
+    c.file("s.glb", &glb);
+    let p = c.file("p.toml", pipeline("s.glb", ""));
+    c.fails(
+        &p,
+        &[
+            "s.glb",
+            "the GLB header gives a length of 1664 bytes, but the file has 1672",
+        ],
+    );
+}

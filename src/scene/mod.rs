@@ -5,6 +5,7 @@
 pub mod animation;
 mod buffers;
 mod camera;
+mod document;
 pub mod light;
 pub mod material;
 mod mesh;
@@ -134,6 +135,8 @@ impl Scene {
     /// Loads a `.gltf` or `.glb` file and everything it references.
     pub fn load(path: &Path) -> Result<Scene> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        // Before the glTF crate, which panics on some invalid documents.
+        document::check(path, &bytes)?;
         let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_error(path, e))?;
         for ext in gltf.document.extensions_required() {
             if !SUPPORTED_EXTENSIONS.contains(&ext) {
