@@ -72,7 +72,15 @@ impl Error {
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Interrupted { .. } => 130,
-            Error::Io { source, .. } if source.kind() != std::io::ErrorKind::NotFound => 1,
+            // A missing file, or a folder where a file is expected, is the user's input.
+            Error::Io { source, .. }
+                if !matches!(
+                    source.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::IsADirectory
+                ) =>
+            {
+                1
+            }
             Error::Compare(_) => 4,
             Error::Internal(_) => 70,
             _ => 2,

@@ -515,3 +515,185 @@ fn a_glb_whose_header_lies_about_its_length() {
         ],
     );
 }
+
+#[test]
+fn outputs_that_would_write_over_each_other_or_the_inputs() {
+    let c = Case::new("collisions");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let with = |outputs: &str| {
+        format!(
+            "[scene]\npath = \"s.gltf\"\n[render]\nwidth = 8\nheight = 6\nspp = 1\n[frames]\nend = 3\n{outputs}"
+        )
+    };
+    // The same files under two spellings.
+    let p = c.file(
+        "p1.toml",
+        with("[[output]]\nkind = \"png\"\npath = \"a/f{frame}_{eye}.png\"\n[[output]]\nkind = \"png\"\npath = \"./a/b/../f{frame}_{eye}.png\"\n"),
+    );
+    c.fails(
+        &p,
+        &["p1.toml:14:", "[[output]] number 2 writes a/f0_left.png"],
+    );
+    // A fixed name that one frame of another output takes.
+    let p = c.file(
+        "p2.toml",
+        with("[[output]]\nkind = \"wobble-gif\"\npath = \"w2.gif\"\n[[output]]\nkind = \"wobble-gif\"\nper_frame = true\npath = \"w{frame}.gif\"\n"),
+    );
+    c.fails(&p, &["p2.toml:15:", "writes w2.gif"]);
+    // Two videos of one name.
+    let p = c.file(
+        "p3.toml",
+        with("[[output]]\nkind = \"anaglyph\"\npath = \"a{frame}.png\"\nvideo = \"v.mp4\"\n[[output]]\nkind = \"side-by-side\"\npath = \"s{frame}.png\"\nvideo = \"v.mp4\"\n"),
+    );
+    c.fails(
+        &p,
+        &[
+            "p3.toml:16:",
+            "the video of [[output]] number 2 writes v.mp4",
+        ],
+    );
+}
+
+#[test]
+fn an_output_that_would_overwrite_the_pipeline_itself() {
+    let c = Case::new("overwrite-input");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    // The pipeline is saved under the name an output writes, in the output folder.
+    let p = c.file("out/img_left.png", pipeline("../s.gltf", ""));
+    let before = std::fs::read(&p).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(c.dir.join("out"))
+        .arg(&p)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("would overwrite") && stderr.contains("an input of this run"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&p).unwrap(), before);
+}
+
+#[test]
+fn values_that_were_accepted_in_silence() {
+    let c = Case::new("silent");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let p = c.file(
+        "p.toml",
+        pipeline("s.gltf", "background = [0.1, 0.2, 0.3, 0.4]"),
+    );
+    c.fails(
+        &p,
+        &[
+            "p.toml:7:",
+            "expected three numbers (red, green, blue), got 4",
+        ],
+    );
+    c.file(
+        "old.gltf",
+        triangle_gltf(GOOD_TRIANGLE, |g| g["asset"]["version"] = json!("1.0")),
+    );
+    let p = c.file("p2.toml", pipeline("old.gltf", ""));
+    c.fails(&p, &["old.gltf", "asset.version", "glTF 2.x"]);
+}
+
+#[test]
+fn a_folder_where_a_file_is_expected_is_bad_input() {
+    let c = Case::new("folder");
+    std::fs::create_dir_all(c.dir.join("p.toml")).unwrap();
+    c.fails(&c.dir.join("p.toml"), &["p.toml"]);
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .arg("info")
+        .arg(&c.dir)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+#[test]
+fn benchmark_settings_that_measure_nothing() {
+    for args in [
+        &[
+            "bench",
+            "sweep",
+            "p.toml",
+            "--sweep",
+            "render.spp=1",
+            "--repeat",
+            "0",
+        ][..],
+        &[
+            "bench",
+            "sweep",
+            "p.toml",
+            "--sweep",
+            "render.spp=1",
+            "--threshold",
+            "nan",
+        ],
+        &["bench", "accel", "generated:10", "--repeat", "0"],
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("--repeat") || stderr.contains("--threshold"),
+            "{stderr}"
+        );
+    }
+}
+
+/// An encoder that fails (here a stand-in `ffmpeg` that reads its input and reports a full
+/// disk) is a failed write: exit 1 naming the video, and no video file or temporary left.
+#[test]
+fn a_failing_video_encoder_is_a_write_error() {
+    use std::os::unix::fs::PermissionsExt;
+    let c = Case::new("video-fails");
+    let bin = c.dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let fake = bin.join("ffmpeg");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\n[ \"$1\" = -version ] && exit 0\ncat > /dev/null\necho 'No space left on device' >&2\nexit 1\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let text = pipeline("s.gltf", "")
+        .replace("kind = \"png\"", "kind = \"anaglyph\"")
+        .replace("img_{eye}.png", "a.png\"\nvideo = \"a.mp4");
+    let p = c.file("p.toml", text);
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(c.dir.join("out"))
+        .arg(&p)
+        .env("PATH", path)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("a.mp4") && stderr.contains("No space left"),
+        "{stderr}"
+    );
+    let left: Vec<_> = walk(&c.dir.join("out"))
+        .into_iter()
+        .filter(|f| f.to_string_lossy().contains(".mp4"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}

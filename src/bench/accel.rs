@@ -54,12 +54,12 @@ pub struct AccelBenchOptions {
     )]
     pub splits: Vec<SplitMethod>,
     /// Runs per measurement; the median is reported.
-    #[arg(long, default_value_t = 3)]
-    pub repeat: usize,
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
     /// Times each ray set this many times per build (the median over all runs is reported):
     /// tracing takes a fraction of a second, so on a shared machine more samples steady it.
-    #[arg(long, default_value_t = 1)]
-    pub trace_repeat: usize,
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub trace_repeat: u32,
     /// How kd-tree rows trace: `single` (one ray at a time) and/or `packet` (coherent runs of
     /// up to four consecutive rays together, `closest_hits`/`any_hits`: rows named
     /// `METHOD+packets`). Both find bit-identical hits.

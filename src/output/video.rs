@@ -122,12 +122,13 @@ impl VideoEncoder {
             .map_err(|e| Error::io(&self.path, e))?;
         if !out.status.success() {
             let _ = std::fs::remove_file(&self.tmp);
-            return Err(Error::input(
+            // Writing failed, not the input: status 1.
+            return Err(Error::io(
                 &self.path,
-                format!(
+                std::io::Error::other(format!(
                     "ffmpeg failed: {}",
                     String::from_utf8_lossy(&out.stderr).trim()
-                ),
+                )),
             ));
         }
         std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;

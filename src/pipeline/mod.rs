@@ -5,6 +5,7 @@
 //! `outputs` writes what each output makes of it. `LoadedPipeline` is the front door: a file read,
 //! checked and with its scene loaded.
 
+mod collisions;
 mod edit;
 mod interrupt;
 mod location;

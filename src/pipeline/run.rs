@@ -3,6 +3,7 @@
 //! scene -> accel -> render -> outputs.
 
 use super::LoadedPipeline;
+use super::collisions::{FRAME_LOG, check_inputs_untouched};
 use super::interrupt;
 use super::outputs::Writer;
 use super::trace::FrameTracer;
@@ -104,6 +105,7 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
             ),
         ));
     }
+    check_inputs_untouched(p, &opts.out_dir, start, end)?;
     interrupt::install()?;
     let stale = interrupt::remove_stale_temporaries(&output_dirs(p, opts, start));
     let threads = opts.threads.unwrap_or(spec.render.threads);
@@ -219,7 +221,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         finished = Some(frame);
         frame_bar.inc(1);
     }
-    let log_path = opts.out_dir.join("frame-log.csv");
+    let log_path = opts.out_dir.join(FRAME_LOG);
     if interrupt::requested() {
         // Dropping the writers stops their encoders and removes their temporary files.
         let whole_range = writers.iter().any(Writer::spans_range);

@@ -60,10 +60,24 @@ pub struct RenderSection {
     pub spp: u32,
     pub max_depth: u32,
     pub shading: ShadingModel,
+    #[serde(deserialize_with = "three_numbers")]
     pub background: [f32; 3],
     /// 0 = all cores.
     pub threads: usize,
     pub eye_reuse: EyeReuse,
+}
+
+/// Exactly three numbers (an RGB colour): a fourth would otherwise be dropped in silence.
+fn three_numbers<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<[f32; 3], D::Error> {
+    let v = Vec::<f32>::deserialize(d)?;
+    <[f32; 3]>::try_from(v.as_slice()).map_err(|_| {
+        serde::de::Error::custom(format!(
+            "expected three numbers (red, green, blue), got {}",
+            v.len()
+        ))
+    })
 }
 
 impl Default for RenderSection {

@@ -2,6 +2,7 @@
 //! (before any scene is read), then what needs the scene (the camera, the animation). Every
 //! failure names the key it concerns, so the error points at its line and column.
 
+use super::collisions::check_collisions;
 use super::location::{Invalid, Key, invalid};
 use super::schema::{Pipeline, Selector};
 use super::template::PathTemplate;
@@ -111,20 +112,7 @@ pub(super) fn validate_values(
             .map_err(|(k, m)| invalid(&key(k), m))?;
         templates.push(t);
     }
-    for (i, a) in templates.iter().enumerate() {
-        for (j, b) in templates.iter().enumerate().skip(i + 1) {
-            if a.render(f.start, "left") == b.render(f.start, "left") {
-                return Err(invalid(
-                    &[N("output"), Key::Index(j), N("path")],
-                    format!(
-                        "[[output]] number {} writes the same files as [[output]] number {}",
-                        j + 1,
-                        i + 1
-                    ),
-                ));
-            }
-        }
-    }
+    check_collisions(p, &templates)?;
     Ok(templates)
 }
 

@@ -28,8 +28,13 @@ pub(super) fn check(file: &Path, bytes: &[u8]) -> Result<()> {
     } else {
         bytes
     };
-    let doc: Value = serde_json::from_slice(json)
-        .map_err(|e| Error::scene(file, "", format!("not a readable glTF file: invalid JSON: {e}")))?;
+    let doc: Value = serde_json::from_slice(json).map_err(|e| {
+        Error::scene(
+            file,
+            "",
+            format!("not a readable glTF file: invalid JSON: {e}"),
+        )
+    })?;
     Document { file, doc: &doc }.check()
 }
 
@@ -93,6 +98,19 @@ impl Document<'_> {
     }
 
     fn check(&self) -> Result<()> {
+        let version = self.doc.get("asset").and_then(|a| a.get("version"));
+        if version
+            .and_then(Value::as_str)
+            .is_none_or(|v| v.split('.').next() != Some("2"))
+        {
+            return Err(self.fail(
+                "asset.version".into(),
+                format!(
+                    "this reader reads glTF 2.x; the file says {}",
+                    version.map_or("nothing".into(), Value::to_string)
+                ),
+            ));
+        }
         self.check_accessors()?;
         for (i, b) in self.array("bufferViews").iter().enumerate() {
             self.index(b.get("buffer"), "buffers", || {

@@ -35,6 +35,14 @@ const SPLIT: &str = "accel.split";
 const UPDATE: &str = "accel.update";
 const EYE_REUSE: &str = "render.eye_reuse";
 
+/// `--threshold`: a finite, non-negative per-channel error.
+fn parse_threshold(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err(format!("'{s}' is not a finite number >= 0")),
+    }
+}
+
 #[derive(Clone, Debug, clap::Args)]
 pub struct SweepOptions {
     /// Pipeline file (TOML).
@@ -45,8 +53,8 @@ pub struct SweepOptions {
     #[arg(long = "sweep", value_parser = parse_sweep)]
     pub sweeps: Vec<(String, Vec<String>)>,
     /// Runs per combination; times are medians with the fastest and slowest run.
-    #[arg(long, default_value_t = 3)]
-    pub repeat: usize,
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
     /// Folder for the results.
     #[arg(long = "out", value_name = "OUT", default_value = "out/sweep")]
     pub out_dir: PathBuf,
@@ -60,7 +68,7 @@ pub struct SweepOptions {
     #[arg(long)]
     pub reference_depth: Option<u32>,
     /// Per-channel error above which a pixel counts as wrong (`compare --fail`).
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, default_value_t = 0.02, value_parser = parse_threshold)]
     pub threshold: f32,
 }
 

@@ -1,0 +1,188 @@
+//! Outputs that would write over each other or over the run's own inputs,
+//! found before anything is traced. Paths are compared after lexical normalisation (`./a`,
+//! `sub/../a` and `a//b` name what `a` and `a/b` name), for every frame and eye the outputs
+//! write, and at run time with the output folder's links resolved.
+
+use super::LoadedPipeline;
+use super::location::{Invalid, Key, invalid};
+use super::schema::Pipeline;
+use super::template::PathTemplate;
+use crate::error::{Error, Result};
+use crate::render::Rig;
+use std::collections::HashMap;
+use std::path::{Component, Path, PathBuf};
+
+/// The frame log every run writes beside the outputs.
+pub const FRAME_LOG: &str = "frame-log.csv";
+
+/// Frames whose files are listed when a range is longer than this: its first and last
+/// `FRAMES_LISTED / 2` frames. A clash between a fixed name and a frame's name shows within
+/// the first frames (frame numbers are what differ), and ten thousand frames of a few outputs
+/// are listed in milliseconds.
+const FRAMES_LISTED: u32 = 10_000;
+
+/// One file an output writes: its path relative to `--out`, normalised, and the key naming it.
+struct Written {
+    path: String,
+    output: usize,
+    key: &'static str,
+}
+
+/// `a/./b/../c//d` as `a/c/d`.
+fn normalise(path: &str) -> String {
+    let mut parts: Vec<&str> = Vec::new();
+    for part in path.split('/') {
+        match part {
+            "" | "." => {}
+            ".." => {
+                parts.pop();
+            }
+            p => parts.push(p),
+        }
+    }
+    parts.join("/")
+}
+
+/// Every file the outputs write over the frames `start..=end`.
+fn written(p: &Pipeline, templates: &[PathTemplate], start: u32, end: u32) -> Vec<Written> {
+    let eyes: &[&str] = if p.stereo.rig == Rig::Mono {
+        &["center"]
+    } else {
+        &["left", "right"]
+    };
+    let frames: Vec<u32> = if end - start < FRAMES_LISTED {
+        (start..=end).collect()
+    } else {
+        (start..start + FRAMES_LISTED / 2)
+            .chain(end - FRAMES_LISTED / 2 + 1..=end)
+            .collect()
+    };
+    let mut out = Vec::new();
+    for (i, (o, t)) in p.outputs.iter().zip(templates).enumerate() {
+        let mut add = |path: String, key| {
+            out.push(Written {
+                path: normalise(&path),
+                output: i,
+                key,
+            })
+        };
+        if o.single_file() {
+            // A whole-range file is named from frame 0 (`Writer::finish`).
+            add(t.render(0, ""), "path");
+        } else {
+            for &f in &frames {
+                if t.has_eye() {
+                    for eye in eyes {
+                        add(t.render(f, eye), "path");
+                    }
+                } else {
+                    add(t.render(f, ""), "path");
+                }
+                if !t.has_frame() {
+                    break;
+                }
+            }
+        }
+        if let Some(v) = o.video() {
+            add(v.to_string(), "video");
+        }
+    }
+    out
+}
+
+/// Refuses outputs that write the same file as another output (or as another output's video).
+/// (No output can write the frame log: their names end in .png, .exr, .gif or a video's.)
+pub(super) fn check_collisions(
+    p: &Pipeline,
+    templates: &[PathTemplate],
+) -> std::result::Result<(), Invalid<'static>> {
+    let mut seen: HashMap<String, (usize, &'static str)> = HashMap::new();
+    for w in written(p, templates, p.frames.start, p.frames.end) {
+        let key = [Key::Name("output"), Key::Index(w.output), Key::Name(w.key)];
+        match seen.get(&w.path) {
+            Some(&(other, other_key)) if other != w.output || other_key != w.key => {
+                let what = |k: &str| if k == "video" { "the video of " } else { "" };
+                return Err(invalid(
+                    &key,
+                    format!(
+                        "{}[[output]] number {} writes {}, which {}[[output]] number {} writes too",
+                        what(w.key),
+                        w.output + 1,
+                        w.path,
+                        what(other_key),
+                        other + 1
+                    ),
+                ));
+            }
+            Some(_) => {}
+            None => {
+                seen.insert(w.path, (w.output, w.key));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A path made absolute, with the links of its folder resolved where that folder exists.
+fn resolved(path: &Path) -> PathBuf {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut clean = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            Component::ParentDir => {
+                clean.pop();
+            }
+            Component::CurDir => {}
+            c => clean.push(c),
+        }
+    }
+    match (clean.parent(), clean.file_name()) {
+        (Some(dir), Some(name)) => std::fs::canonicalize(dir)
+            .map(|d| d.join(name))
+            .unwrap_or(clean),
+        _ => clean,
+    }
+}
+
+/// Refuses a run whose outputs (for `start..=end`, under `out_dir`) would overwrite its
+/// pipeline or scene file.
+pub(super) fn check_inputs_untouched(
+    p: &LoadedPipeline,
+    out_dir: &Path,
+    start: u32,
+    end: u32,
+) -> Result<()> {
+    let inputs = [&p.file, &p.scene_path].map(|f| std::fs::canonicalize(f).ok());
+    for w in written(&p.spec, &p.templates, start, end) {
+        let target = resolved(&out_dir.join(&w.path));
+        if inputs.iter().flatten().any(|i| *i == target) {
+            return Err(Error::input(
+                &p.file,
+                format!(
+                    "[[output]] number {} would overwrite {}, an input of this run",
+                    w.output + 1,
+                    target.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paths_that_name_the_same_file_normalise_alike() {
+        for p in [
+            "a/b.png",
+            "./a/b.png",
+            "a//b.png",
+            "a/c/../b.png",
+            "a/./b.png",
+        ] {
+            assert_eq!(normalise(p), "a/b.png", "{p}");
+        }
+    }
+}
