@@ -653,18 +653,17 @@ fn benchmark_settings_that_measure_nothing() {
     }
 }
 
-/// An encoder that fails (here a stand-in `ffmpeg` that reads its input and reports a full
-/// disk) is a failed write: exit 1 naming the video, and no video file or temporary left.
-#[test]
-fn a_failing_video_encoder_is_a_write_error() {
+/// Renders a one-frame anaglyph with a video through a stand-in `ffmpeg` running `script`
+/// (after answering `-version`); returns the exit status, stderr and the video files left.
+fn render_with_fake_ffmpeg(name: &str, script: &str) -> (Option<i32>, String, Vec<PathBuf>) {
     use std::os::unix::fs::PermissionsExt;
-    let c = Case::new("video-fails");
+    let c = Case::new(name);
     let bin = c.dir.join("bin");
     std::fs::create_dir_all(&bin).unwrap();
     let fake = bin.join("ffmpeg");
     std::fs::write(
         &fake,
-        "#!/bin/sh\n[ \"$1\" = -version ] && exit 0\ncat > /dev/null\necho 'No space left on device' >&2\nexit 1\n",
+        format!("#!/bin/sh\n[ \"$1\" = -version ] && exit 0\n{script}"),
     )
     .unwrap();
     std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
@@ -685,15 +684,46 @@ fn a_failing_video_encoder_is_a_write_error() {
         .env("PATH", path)
         .output()
         .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    let videos = walk(&c.dir.join("out"))
+        .into_iter()
+        .filter(|f| f.to_string_lossy().contains(".mp4"))
+        .collect();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        videos,
+    )
+}
+
+/// An encoder that fails (a stand-in `ffmpeg` that reads its input and reports a full disk) is
+/// a failed write: exit 1 naming the video, and no video file or temporary left.
+#[test]
+fn a_failing_video_encoder_is_a_write_error() {
+    let (code, stderr, videos) = render_with_fake_ffmpeg(
+        "video-fails",
+        "cat > /dev/null\necho 'No space left on device' >&2\nexit 1\n",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
     assert!(
         stderr.contains("a.mp4") && stderr.contains("No space left"),
         "{stderr}"
     );
-    let left: Vec<_> = walk(&c.dir.join("out"))
-        .into_iter()
-        .filter(|f| f.to_string_lossy().contains(".mp4"))
-        .collect();
-    assert!(left.is_empty(), "{left:?}");
+    assert!(videos.is_empty(), "{videos:?}");
+}
+
+/// An encoder that exits 0 having written a cut-off file (ffmpeg on a full disk) does not get
+/// its file kept.
+#[test]
+fn a_video_cut_off_by_a_full_disk_is_not_kept() {
+    // The last argument is the output file: an 'ftyp' box and the start of 'mdat', no 'moov'.
+    let (code, stderr, videos) = render_with_fake_ffmpeg(
+        "video-cut",
+        "cat > /dev/null\nfor last; do :; done\nprintf '\\000\\000\\000\\010ftyp\\000\\000\\001\\000mdat' > \"$last\"\nexit 0\n",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("a.mp4") && stderr.contains("broken video"),
+        "{stderr}"
+    );
+    assert!(videos.is_empty(), "{videos:?}");
 }

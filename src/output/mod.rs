@@ -5,6 +5,7 @@
 
 pub mod anaglyph;
 mod color;
+mod container;
 pub mod exr;
 pub mod image;
 mod layout;

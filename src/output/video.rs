@@ -131,6 +131,22 @@ impl VideoEncoder {
                 )),
             ));
         }
+        // ffmpeg can exit 0 having written a cut-off file (a full disk): the container must be
+        // whole before the file takes its name.
+        let matroska = self
+            .path
+            .extension()
+            .is_some_and(|e| e == "mkv" || e == "webm");
+        let whole = std::fs::read(&self.tmp)
+            .map_err(|e| e.to_string())
+            .and_then(|bytes| super::container::check_whole(&bytes, matroska));
+        if let Err(why) = whole {
+            let _ = std::fs::remove_file(&self.tmp);
+            return Err(Error::io(
+                &self.path,
+                std::io::Error::other(format!("ffmpeg exited 0 but wrote a broken video: {why}")),
+            ));
+        }
         std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
         Ok(Some(self.path.clone()))
     }
