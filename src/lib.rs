@@ -18,6 +18,13 @@ pub use error::{Error, Result};
 
 /// The worker pool a command runs on (0 threads: one per core).
 pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
+    // The bound the pipeline's `[render] threads` has, for `--threads` too.
+    if threads > 1024 {
+        return Err(Error::input(
+            std::path::Path::new("--threads"),
+            format!("must be between 0 (all cores) and 1024, got {threads}"),
+        ));
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()

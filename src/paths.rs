@@ -38,3 +38,21 @@ mod tests {
         assert_eq!(depth_inside(Path::new("/x")), Err(Outside::Absolute));
     }
 }
+
+/// Reads a regular file. A folder, device or named pipe is refused before any read: `/dev/zero`
+/// would fill memory and a pipe with no writer would block for ever.
+pub fn read_regular(path: &Path) -> crate::Result<Vec<u8>> {
+    let meta = std::fs::metadata(path).map_err(|e| crate::Error::io(path, e))?;
+    if !meta.is_file() {
+        let what = if meta.is_dir() {
+            "a folder"
+        } else {
+            "a device or pipe"
+        };
+        return Err(crate::Error::input(
+            path,
+            format!("is {what}, not a regular file"),
+        ));
+    }
+    std::fs::read(path).map_err(|e| crate::Error::io(path, e))
+}

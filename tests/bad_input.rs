@@ -727,3 +727,63 @@ fn a_video_cut_off_by_a_full_disk_is_not_kept() {
     );
     assert!(videos.is_empty(), "{videos:?}");
 }
+
+/// Runs stereotrace, failing the test (instead of hanging) past 20 s.
+fn run_bounded(args: &[&std::ffi::OsStr]) -> std::process::Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed() > std::time::Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("{args:?} did not end within 20 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn devices_pipes_and_absurd_thread_counts_are_refused() {
+    let c = Case::new("devices");
+    let o = run_bounded(&["info".as_ref(), "/dev/zero".as_ref()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a regular file"));
+    // A buffer URI that names a named pipe with no writer.
+    let fifo = c.dir.join("data.bin");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    c.file(
+        "s.gltf",
+        triangle_gltf(GOOD_TRIANGLE, |g| {
+            g["buffers"][0]["uri"] = json!("data.bin");
+        }),
+    );
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    let o = run_bounded(&["check".as_ref(), p.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("buffers[0]") && stderr.contains("not a regular file"),
+        "{stderr}"
+    );
+    c.file("good.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let good = c.file("good.toml", pipeline("good.gltf", ""));
+    let o = run_bounded(&[
+        "render".as_ref(),
+        "--threads".as_ref(),
+        "1000000".as_ref(),
+        good.as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
+}

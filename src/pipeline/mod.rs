@@ -86,7 +86,7 @@ impl LoadedPipeline {
     /// Reads, parses and validates a pipeline file and loads its scene. No rendering happens and
     /// no file is written.
     pub fn load(file: &Path) -> Result<LoadedPipeline> {
-        let bytes = std::fs::read(file).map_err(|e| Error::io(file, e))?;
+        let bytes = crate::paths::read_regular(file)?;
         let src = pipeline_text(file, bytes)?;
         Self::from_source(file, src, None)
     }

@@ -27,7 +27,7 @@ pub fn read_uri(scene_file: &Path, object: &str, uri: &str) -> Result<Vec<u8>> {
             .map_err(|e| Error::scene(scene_file, object, format!("bad base64 in data URI: {e}")));
     }
     let path = resolve_relative(scene_file, object, uri)?;
-    std::fs::read(&path).map_err(|e| {
+    crate::paths::read_regular(&path).map_err(|e| {
         Error::scene(
             scene_file,
             object,

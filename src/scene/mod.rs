@@ -134,7 +134,7 @@ pub struct Scene {
 impl Scene {
     /// Loads a `.gltf` or `.glb` file and everything it references.
     pub fn load(path: &Path) -> Result<Scene> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::paths::read_regular(path)?;
         // Before the glTF crate, which panics on some invalid documents.
         document::check(path, &bytes)?;
         let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_error(path, e))?;
