@@ -26,19 +26,6 @@ pub fn depth_inside(path: &Path) -> Result<usize, Outside> {
     Ok(depth)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn dot_dot_may_climb_back_but_never_above_the_start() {
-        assert_eq!(depth_inside(Path::new("a/b/../c.png")), Ok(2));
-        assert_eq!(depth_inside(Path::new("a/..")), Ok(0));
-        assert_eq!(depth_inside(Path::new("a/../../x")), Err(Outside::Escapes));
-        assert_eq!(depth_inside(Path::new("/x")), Err(Outside::Absolute));
-    }
-}
-
 /// Reads a regular file. A folder, device or named pipe is refused before any read: `/dev/zero`
 /// would fill memory and a pipe with no writer would block for ever.
 pub fn read_regular(path: &Path) -> crate::Result<Vec<u8>> {
@@ -55,4 +42,17 @@ pub fn read_regular(path: &Path) -> crate::Result<Vec<u8>> {
         ));
     }
     std::fs::read(path).map_err(|e| crate::Error::io(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dot_dot_may_climb_back_but_never_above_the_start() {
+        assert_eq!(depth_inside(Path::new("a/b/../c.png")), Ok(2));
+        assert_eq!(depth_inside(Path::new("a/..")), Ok(0));
+        assert_eq!(depth_inside(Path::new("a/../../x")), Err(Outside::Escapes));
+        assert_eq!(depth_inside(Path::new("/x")), Err(Outside::Absolute));
+    }
 }
