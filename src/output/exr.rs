@@ -27,11 +27,14 @@ fn rgb_channels(image: &Image, prefix: &str, half: bool) -> Vec<AnyChannel<FlatS
     ["R", "G", "B"]
         .iter()
         .enumerate()
-        .map(|(c, name)| {
-            AnyChannel::new(
-                Text::from(format!("{prefix}{name}").as_str()),
-                samples(image.channel(c), half),
-            )
+        // Radiance is not perceptually linear (OpenEXR's pLinear flag). The exr crate guesses
+        // the flag from the name, false for "R" but true for "right.R": set it for every view
+        // alike.
+        .map(|(c, name)| AnyChannel {
+            name: Text::from(format!("{prefix}{name}").as_str()),
+            sample_data: samples(image.channel(c), half),
+            quantize_linearly: false,
+            sampling: exr::math::Vec2(1, 1),
         })
         .collect()
 }
@@ -230,6 +233,27 @@ mod tests {
         let views = read_views(&path).unwrap();
         assert_eq!(views[0].0, "right");
         assert!((views[0].1.get(3, 2) - r.get(3, 2)).abs().max_element() < 1e-2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn both_views_channels_carry_the_same_linearity_flag() {
+        let dir = std::env::temp_dir().join(format!("st-exr-plinear-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("pair.exr");
+        let img = gradient(4, 3, 1.0);
+        write_multiview(&path, &[("left", &img), ("right", &img)], false).unwrap();
+        let meta = exr::meta::MetaData::read_from_file(&path, false).unwrap();
+        let channels = &meta.headers[0].channels.list;
+        assert_eq!(channels.len(), 6);
+        assert!(
+            channels.iter().all(|c| !c.quantize_linearly),
+            "{:?}",
+            channels
+                .iter()
+                .map(|c| (c.name.to_string(), c.quantize_linearly))
+                .collect::<Vec<_>>()
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
