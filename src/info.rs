@@ -54,11 +54,10 @@ pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
             .cameras
             .iter()
             .map(|c| {
-                scene.nodes[c.node]
-                    .name
-                    .clone()
-                    .or_else(|| scene.cameras[c.camera].name.clone())
-                    .unwrap_or_else(|| format!("{} (unnamed, on node {})", c.camera, c.node))
+                scene.camera_name(c).map_or_else(
+                    || format!("{} (unnamed, on node {})", c.camera, c.node),
+                    str::to_owned,
+                )
             })
             .collect(),
         skins: scene.skins.len(),

@@ -22,8 +22,8 @@ pub const FRAME_LOG: &str = "frame-log.csv";
 const FRAMES_LISTED: u32 = 10_000;
 
 /// One file an output writes: its path relative to `--out`, normalised, and the key naming it.
-struct Written {
-    path: String,
+pub(super) struct Written {
+    pub path: String,
     output: usize,
     key: &'static str,
 }
@@ -44,7 +44,12 @@ fn normalise(path: &str) -> String {
 }
 
 /// Every file the outputs write over the frames `start..=end`.
-fn written(p: &Pipeline, templates: &[PathTemplate], start: u32, end: u32) -> Vec<Written> {
+pub(super) fn written(
+    p: &Pipeline,
+    templates: &[PathTemplate],
+    start: u32,
+    end: u32,
+) -> Vec<Written> {
     let eyes: &[&str] = if p.stereo.rig == Rig::Mono {
         &["center"]
     } else {

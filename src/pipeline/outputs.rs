@@ -222,14 +222,7 @@ impl Writer {
     /// Whether this output makes a file of the whole range (a video, a wobble GIF over the
     /// animation), written by `finish`.
     pub fn spans_range(&self) -> bool {
-        self.video.is_some()
-            || matches!(
-                self.spec,
-                OutputSpec::WobbleGif {
-                    per_frame: false,
-                    ..
-                }
-            )
+        self.video.is_some() || self.spec.single_file()
     }
 
     /// Completes outputs that span the range (a wobble GIF over the animation, videos).

@@ -3,7 +3,7 @@
 //! scene -> accel -> render -> outputs.
 
 use super::LoadedPipeline;
-use super::collisions::{FRAME_LOG, check_inputs_untouched};
+use super::collisions::{FRAME_LOG, check_inputs_untouched, written};
 use super::interrupt;
 use super::outputs::Writer;
 use super::trace::FrameTracer;
@@ -117,13 +117,8 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
 /// The folders this run writes into: `--out`, and those of the outputs' first files and videos.
 fn output_dirs(p: &LoadedPipeline, opts: &RunOptions, start: u32) -> Vec<PathBuf> {
     let mut dirs = vec![opts.out_dir.clone()];
-    for (t, o) in p.templates.iter().zip(&p.spec.outputs) {
-        for eye in ["left", "right", "center"] {
-            dirs.extend(t.path(&opts.out_dir, start, eye).parent().map(Into::into));
-        }
-        if let Some(v) = o.video() {
-            dirs.extend(opts.out_dir.join(v).parent().map(Into::into));
-        }
+    for w in written(&p.spec, &p.templates, start, start) {
+        dirs.extend(opts.out_dir.join(&w.path).parent().map(Into::into));
     }
     dirs.sort();
     dirs.dedup();

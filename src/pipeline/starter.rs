@@ -2,6 +2,7 @@
 //! frame range filled in and every output kind present (all but one commented out), so that
 //! nobody writes a pipeline from the README by hand.
 
+use super::trace::distance_to_bounds;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
 use crate::scene::{Scene, framing_camera};
@@ -70,10 +71,8 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
         .cameras
         .iter()
         .map(|c| {
-            scene.nodes[c.node]
-                .name
-                .clone()
-                .or_else(|| scene.cameras[c.camera].name.clone())
+            scene
+                .camera_name(c)
                 .map_or_else(|| c.camera.to_string(), |n| format!("{n:?}"))
         })
         .collect();
@@ -83,8 +82,7 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
         |c| c.world.transform_point3(Vec3::ZERO),
     );
     let centre = eye.distance((lo + hi) * 0.5).max(1e-3);
-    let nearest = eye.distance(eye.clamp(lo, hi));
-    let nearest = if nearest > 0.0 { nearest } else { centre };
+    let nearest = distance_to_bounds(eye, (lo, hi));
     let duration = scene
         .animations
         .iter()

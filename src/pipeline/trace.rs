@@ -264,6 +264,15 @@ fn frame_camera(
     }
 }
 
+/// The distance from `point` to the nearest point of the box `bounds`, or to its centre when
+/// `point` is inside it.
+pub(super) fn distance_to_bounds(point: Vec3, (lo, hi): (Vec3, Vec3)) -> f32 {
+    match point.distance(point.clamp(lo, hi)) {
+        d if d > 0.0 => d,
+        _ => point.distance((lo + hi) * 0.5),
+    }
+}
+
 /// The radiance of a white diffuse surface facing the head-light at the nearest point of the
 /// scene's bounds: below 1 so that the nearest surfaces keep their shading instead of clipping
 /// to white in an 8-bit output (surfaces further away are darker by the square of distance).
@@ -274,18 +283,9 @@ const HEAD_LIGHT_WHITE: f32 = 0.8;
 /// bounds (to their centre when the camera is inside them).
 fn head_light(camera: &Mat4, bounds: Option<(Vec3, Vec3)>) -> Light {
     let position = camera.transform_point3(Vec3::ZERO);
-    let d2 = match bounds {
-        Some((lo, hi)) => {
-            let nearest = position.clamp(lo, hi).distance_squared(position);
-            if nearest > 0.0 {
-                nearest
-            } else {
-                position.distance_squared((lo + hi) * 0.5)
-            }
-        }
-        None => 1.0,
-    }
-    .max(1e-6);
+    let d2 = bounds
+        .map_or(1.0, |b| distance_to_bounds(position, b).powi(2))
+        .max(1e-6);
     Light {
         kind: LightKind::Point,
         power: Vec3::splat(HEAD_LIGHT_WHITE * std::f32::consts::PI * d2),

@@ -74,10 +74,7 @@ struct Document<'a> {
 
 impl Document<'_> {
     fn array(&self, key: &str) -> &[Value] {
-        self.doc
-            .get(key)
-            .and_then(Value::as_array)
-            .map_or(&[], Vec::as_slice)
+        array_of(self.doc.get(key))
     }
 
     fn fail(&self, object: String, message: impl Into<String>) -> Error {

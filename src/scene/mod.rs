@@ -132,6 +132,15 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The name `[scene] camera` can choose a placed camera by: its node's name, else its
+    /// camera's name.
+    pub fn camera_name(&self, camera: &pose::PosedCamera) -> Option<&str> {
+        self.nodes[camera.node]
+            .name
+            .as_deref()
+            .or(self.cameras[camera.camera].name.as_deref())
+    }
+
     /// Loads a `.gltf` or `.glb` file and everything it references.
     pub fn load(path: &Path) -> Result<Scene> {
         let bytes = crate::paths::read_regular(path)?;
