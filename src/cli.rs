@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use stereotrace::accel::SplitMethod;
 use stereotrace::bench::{accel, sweep};
 use stereotrace::compare;
-use stereotrace::pipeline::parse_frame_range;
+use stereotrace::pipeline::{ShardArg, parse_frame_range, parse_shard};
 
 #[derive(Parser)]
 #[command(
@@ -31,8 +31,13 @@ pub enum Command {
     /// Render a pipeline: every frame, every eye, every output.
     #[command(after_help = "Examples:\n  \
         stereotrace render pipelines/default.toml\n  \
-        stereotrace render my.toml --out out --frames 0..23 --threads 8\n\n\
-        Ctrl-C stops after the tiles being traced and keeps every finished frame (exit 130).")]
+        stereotrace render my.toml --out out --frames 0..23 --threads 8\n  \
+        stereotrace render my.toml --out out --shard 2/8     one of 8 farm tasks\n  \
+        stereotrace render my.toml --out out --shard auto    the task of a Slurm job array\n  \
+        stereotrace render my.toml --out out --resume        after a crash: only what is left\n\n\
+        Ctrl-C stops after the tiles being traced and keeps every finished frame (exit 130).\n\
+        Every finished frame is listed in OUT/manifest*.jsonl with its files' hashes; --resume\n\
+        skips the frames listed there whose files are unchanged and that this pipeline made.")]
     Render {
         /// Pipeline file (TOML).
         pipeline: PathBuf,
@@ -46,6 +51,31 @@ pub enum Command {
         #[arg(long, default_value = ".")]
         out: PathBuf,
         /// No progress bars and no summary line (warnings are still printed).
+        #[arg(long)]
+        quiet: bool,
+        /// Render the I-th of N contiguous blocks of the range (I/N), or the scheduler's task:
+        /// `auto` (Slurm job arrays) or `auto/N` (Kubernetes Indexed Jobs of N completions).
+        /// Videos, pseudo-stereo and whole-range GIFs are then left to `assemble`.
+        #[arg(long, value_parser = parse_shard, conflicts_with = "frames")]
+        shard: Option<ShardArg>,
+        /// Skip frames already finished, by this pipeline, with unchanged files (the manifest);
+        /// over the whole range, the sequence outputs are made at the end.
+        #[arg(long)]
+        resume: bool,
+    },
+    /// Check that every frame of a farm's shards is finished and current, merge their frame
+    /// logs, and write the outputs that need the whole sequence (videos, pseudo-stereo frames,
+    /// whole-range wobble GIFs). Exit 1 with the missing or stale frames listed otherwise.
+    Assemble {
+        /// Pipeline file (TOML).
+        pipeline: PathBuf,
+        /// The output directory the shards rendered into.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+        /// Worker threads (0 = all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No summary line.
         #[arg(long)]
         quiet: bool,
     },

@@ -37,6 +37,10 @@ pub enum Error {
     /// `render` stopped on SIGINT or SIGTERM; `message` says what was finished and how to go on.
     #[error("interrupted: {message}")]
     Interrupted { message: String },
+    /// `assemble` (or a whole-range `--resume`) found frames missing or stale; `message` lists
+    /// them. Not the input's fault: the farm has work left (status 1).
+    #[error("{message}")]
+    Incomplete { message: String },
     /// A broken invariant of the program, never the user's input.
     #[error("internal error (a bug in stereotrace, please report it): {0}")]
     Internal(String),
@@ -72,6 +76,7 @@ impl Error {
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Interrupted { .. } => 130,
+            Error::Incomplete { .. } => 1,
             // A missing file, or a folder where a file is expected, is the user's input.
             Error::Io { source, .. }
                 if !matches!(

@@ -5,7 +5,7 @@ use clap::Parser;
 use std::io::IsTerminal;
 use std::process::ExitCode;
 use stereotrace::bench::{accel, memory, sweep};
-use stereotrace::pipeline::{LoadedPipeline, RunOptions};
+use stereotrace::pipeline::{LoadedPipeline, RunOptions, assemble};
 use stereotrace::{Error, Result, compare, info, thread_pool};
 
 mod cli;
@@ -78,6 +78,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             threads,
             out,
             quiet,
+            shard,
+            resume,
         } => {
             let p = LoadedPipeline::load(&pipeline)?;
             // Warnings say what the render will not do as asked: --quiet keeps them.
@@ -87,10 +89,26 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 threads,
                 out_dir: out,
                 progress: !quiet && std::io::stderr().is_terminal(),
+                shard,
+                resume,
             };
             let summary = stereotrace::pipeline::run(&p, &opts)?;
             if !quiet {
                 note!("{summary}");
+            }
+        }
+        Command::Assemble {
+            pipeline,
+            out,
+            threads,
+            quiet,
+        } => {
+            let p = LoadedPipeline::load(&pipeline)?;
+            warn_all(&p.warnings);
+            let threads = threads.unwrap_or(p.spec.render.threads);
+            let done = thread_pool(threads)?.install(|| assemble(&p, &out))?;
+            if !quiet {
+                note!("{done}");
             }
         }
         Command::New { scene, output } => {

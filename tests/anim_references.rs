@@ -59,6 +59,8 @@ fn every_animated_reference_frame_matches() {
                 threads: None,
                 out_dir: out.clone(),
                 progress: false,
+                shard: None,
+                resume: false,
             };
             run(&p, &opts).unwrap();
             let ours = read_views(&out.join(format!("f_{frame:04}.exr"))).unwrap();

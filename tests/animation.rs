@@ -154,6 +154,8 @@ fn a_frame_rendered_alone_equals_the_same_frame_inside_a_range() {
             threads: None,
             out_dir: dir.join(out),
             progress: false,
+            shard: None,
+            resume: false,
         };
         stereotrace::pipeline::run::run(&p, &opts).unwrap();
         std::fs::read(dir.join(out).join("f_0007.exr")).unwrap()

@@ -16,6 +16,8 @@ fn render_with(threads: usize) -> Vec<u8> {
             threads: Some(threads),
             out_dir: out.clone(),
             progress: false,
+            shard: None,
+            resume: false,
         },
     )
     .unwrap();

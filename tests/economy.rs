@@ -21,6 +21,8 @@ fn render(name: &str, scene: &str, extra: &str) -> (std::path::PathBuf, RunSumma
         threads: None,
         out_dir: dir.join("out"),
         progress: false,
+        shard: None,
+        resume: false,
     };
     let s = run(&p, &opts).unwrap();
     (dir.join("out"), s)

@@ -37,6 +37,8 @@ fn render(pipeline: &Path, eye_reuse: &str, threads: usize, name: &str) -> Vec<u
             threads: Some(threads),
             out_dir: out.clone(),
             progress: false,
+            shard: None,
+            resume: false,
         },
     )
     .unwrap();

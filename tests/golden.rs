@@ -25,6 +25,8 @@ fn whitted_clip_matches_its_stored_frames() {
         threads: None,
         out_dir: out.clone(),
         progress: false,
+        shard: None,
+        resume: false,
     };
     let summary = run(&pipeline, &opts).unwrap();
     assert_eq!(summary.frames, 3);

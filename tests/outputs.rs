@@ -23,6 +23,8 @@ fn render(name: &str, outputs: &str) -> (std::path::PathBuf, RunSummary) {
         threads: None,
         out_dir: dir.join("out"),
         progress: false,
+        shard: None,
+        resume: false,
     };
     let s = run(&p, &opts).unwrap();
     (dir.join("out"), s)

@@ -23,7 +23,7 @@ pub use exr::{write_multiview, write_single_view};
 pub use image::Image;
 pub use layout::{Order, interlaced, side_by_side, top_bottom};
 pub use planes::Planes;
-pub use png::{to_srgb8, write_png, write_rgb8};
+pub use png::{read_rgb8, to_srgb8, write_png, write_rgb8};
 pub use pseudo::{Channels, PseudoStereo};
 pub use read::read_planes;
 pub use table::{csv_line, read_csv, write_csv};

@@ -3,7 +3,7 @@
 use super::color::Display;
 use super::image::Image;
 use super::write_atomic;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use std::path::Path;
 
 /// Encodes linear radiance to 8-bit sRGB bytes, row-major RGB.
@@ -27,6 +27,15 @@ pub fn write_rgb8(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Resul
         )
         .map_err(std::io::Error::other)
     })
+}
+
+/// Reads back an 8-bit RGB PNG this tool wrote: width, height and bytes.
+pub fn read_rgb8(path: &Path) -> Result<(usize, usize, Vec<u8>)> {
+    let bytes = crate::paths::read_regular(path)?;
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+        .map_err(|e| Error::input(path, format!("cannot read PNG: {e}")))?
+        .into_rgb8();
+    Ok((img.width() as usize, img.height() as usize, img.into_raw()))
 }
 
 pub fn write_png(path: &Path, image: &Image, display: &Display) -> Result<()> {

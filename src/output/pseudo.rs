@@ -2,8 +2,11 @@
 //! takes the "now" channels from frame n and the other channels from frame n - delay. The first
 //! `delay` frames have no frame that old; they take the delayed channels from the earliest frame
 //! of the sequence, so the sequence starts flat and gains depth once the delay is filled.
+//!
+//! It works on the 8-bit display frames: the display transform maps each channel on its own, so
+//! taking channels before or after it gives the same bytes, and a render farm can store the
+//! frames losslessly as PNG and composite them in its last step.
 
-use super::image::Image;
 use serde::Deserialize;
 use std::collections::VecDeque;
 
@@ -38,8 +41,8 @@ impl Channels {
 pub struct PseudoStereo {
     now: [bool; 3],
     delay: usize,
-    /// The last `delay + 1` frames, newest last.
-    history: VecDeque<Image>,
+    /// The last `delay + 1` frames (RGB, 8 bits per channel), newest last.
+    history: VecDeque<Vec<u8>>,
 }
 
 impl PseudoStereo {
@@ -52,7 +55,7 @@ impl PseudoStereo {
     }
 
     /// Takes the next frame of the sequence and returns the composited output frame.
-    pub fn push(&mut self, frame: Image) -> Image {
+    pub fn push(&mut self, frame: Vec<u8>) -> Vec<u8> {
         if self.history.len() == self.delay + 1 {
             self.history.pop_front();
         }
@@ -61,7 +64,7 @@ impl PseudoStereo {
         // Oldest kept frame: n - delay, or the first frame while fewer are available.
         let delayed = self.history.front().expect("history is not empty");
         let mut out = current.clone();
-        for (o, d) in out.pixels.iter_mut().zip(&delayed.pixels) {
+        for (o, d) in out.chunks_exact_mut(3).zip(delayed.chunks_exact(3)) {
             for c in 0..3 {
                 if !self.now[c] {
                     o[c] = d[c];
@@ -75,32 +78,25 @@ impl PseudoStereo {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
 
-    fn numbered(n: f32) -> Image {
-        Image {
-            width: 1,
-            height: 1,
-            pixels: vec![Vec3::splat(n)],
-        }
+    fn numbered(n: u8) -> Vec<u8> {
+        vec![n; 3]
     }
 
     #[test]
     fn red_now_green_and_blue_from_two_frames_ago_starting_from_the_first() {
         let mut p = PseudoStereo::new(Channels::Red, 2);
-        let out: Vec<Vec3> = (0..5)
-            .map(|n| p.push(numbered(n as f32)).pixels[0])
-            .collect();
-        assert_eq!(out[0], Vec3::new(0.0, 0.0, 0.0));
-        assert_eq!(out[1], Vec3::new(1.0, 0.0, 0.0));
-        assert_eq!(out[2], Vec3::new(2.0, 0.0, 0.0));
-        assert_eq!(out[3], Vec3::new(3.0, 1.0, 1.0));
-        assert_eq!(out[4], Vec3::new(4.0, 2.0, 2.0));
+        let out: Vec<Vec<u8>> = (0..5).map(|n| p.push(numbered(n))).collect();
+        assert_eq!(out[0], [0, 0, 0]);
+        assert_eq!(out[1], [1, 0, 0]);
+        assert_eq!(out[2], [2, 0, 0]);
+        assert_eq!(out[3], [3, 1, 1]);
+        assert_eq!(out[4], [4, 2, 2]);
     }
 
     #[test]
     fn zero_delay_is_the_plain_sequence() {
         let mut p = PseudoStereo::new(Channels::GreenBlue, 0);
-        assert_eq!(p.push(numbered(3.0)).pixels[0], Vec3::splat(3.0));
+        assert_eq!(p.push(numbered(3)), [3, 3, 3]);
     }
 }

@@ -90,6 +90,9 @@ impl VideoEncoder {
                     "-vf",
                     "pad=ceil(iw/2)*2:ceil(ih/2)*2",
                 ])
+                // No random segment ID or date in Matroska/WebM: the same frames give the same
+                // file, so a farm's assembled video is byte-identical to a single run's.
+                .args(["-fflags", "+bitexact"])
                 .arg(&self.tmp)
                 .stdin(Stdio::piped())
                 .stdout(Stdio::null())

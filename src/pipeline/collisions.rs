@@ -5,15 +5,13 @@
 
 use super::LoadedPipeline;
 use super::location::{Invalid, Key, invalid};
+use super::outputs::SEQUENCE_FRAMES;
 use super::schema::Pipeline;
 use super::template::PathTemplate;
 use crate::error::{Error, Result};
 use crate::render::Rig;
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
-
-/// The frame log every run writes beside the outputs.
-pub const FRAME_LOG: &str = "frame-log.csv";
 
 /// Frames whose files are listed when a range is longer than this: its first and last
 /// `FRAMES_LISTED / 2` frames. A clash between a fixed name and a frame's name shows within
@@ -95,8 +93,9 @@ pub(super) fn written(
     out
 }
 
-/// Refuses outputs that write the same file as another output (or as another output's video).
-/// (No output can write the frame log: their names end in .png, .exr, .gif or a video's.)
+/// Refuses outputs that write the same file as another output (or as another output's video),
+/// and outputs inside the folder of stored sequence frames. (No output can write the frame
+/// log or a manifest: their names end in .png, .exr, .gif or a video's.)
 pub(super) fn check_collisions(
     p: &Pipeline,
     templates: &[PathTemplate],
@@ -104,6 +103,15 @@ pub(super) fn check_collisions(
     let mut seen: HashMap<String, (usize, &'static str)> = HashMap::new();
     for w in written(p, templates, p.frames.start, p.frames.end) {
         let key = [Key::Name("output"), Key::Index(w.output), Key::Name(w.key)];
+        if w.path.split('/').next() == Some(SEQUENCE_FRAMES) {
+            return Err(invalid(
+                &key,
+                format!(
+                    "{SEQUENCE_FRAMES}/ is where a render keeps the frames of its sequence outputs: \
+                     choose another folder"
+                ),
+            ));
+        }
         match seen.get(&w.path) {
             Some(&(other, other_key)) if other != w.output || other_key != w.key => {
                 let what = |k: &str| if k == "video" { "the video of " } else { "" };

@@ -3,6 +3,9 @@
 //! a second one exits at once. Temporaries that a killed run left behind are removed by the
 //! next run that writes into the same folders.
 
+use super::LoadedPipeline;
+use super::collisions::written;
+use super::outputs::Writer;
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 use std::sync::Once;
@@ -46,6 +49,19 @@ fn temporary_owner(name: &str) -> Option<u32> {
     rest.rsplit_once(".tmp-")?.1.parse().ok()
 }
 
+/// Whether process `pid` runs. A killed process that its parent has not yet reaped (a zombie,
+/// state `Z` in `/proc/PID/stat`) writes nothing more: it counts as gone.
+fn running(proc: &Path, pid: u32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(proc.join(pid.to_string()).join("stat")) else {
+        return false;
+    };
+    // `PID (COMMAND) STATE ...`; the command may itself hold spaces and parentheses.
+    let state = stat
+        .rsplit_once(')')
+        .and_then(|(_, rest)| rest.split_whitespace().next());
+    !matches!(state, Some("Z" | "X"))
+}
+
 /// Removes the temporary files in `dirs` whose process no longer runs (a run that was killed),
 /// and returns them. Where processes cannot be looked up (no `/proc`), nothing is removed.
 pub fn remove_stale_temporaries(dirs: &[PathBuf]) -> Vec<PathBuf> {
@@ -60,9 +76,8 @@ pub fn remove_stale_temporaries(dirs: &[PathBuf]) -> Vec<PathBuf> {
         };
         for e in entries.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            let stale = temporary_owner(&name).is_some_and(|pid| {
-                pid != std::process::id() && !proc.join(pid.to_string()).exists()
-            });
+            let stale = temporary_owner(&name)
+                .is_some_and(|pid| pid != std::process::id() && !running(proc, pid));
             if stale && e.path().is_file() && std::fs::remove_file(e.path()).is_ok() {
                 removed.push(e.path());
             }
@@ -71,6 +86,29 @@ pub fn remove_stale_temporaries(dirs: &[PathBuf]) -> Vec<PathBuf> {
     removed.sort();
     removed.dedup();
     removed
+}
+
+/// The folders the frames `first..=last` write into: `--out`, and those of the outputs' files
+/// and stored sequence frames.
+pub(super) fn output_dirs(
+    p: &LoadedPipeline,
+    writers: &[Writer],
+    out_dir: &Path,
+    (first, last): (u32, u32),
+) -> Vec<PathBuf> {
+    let mut dirs = vec![out_dir.to_path_buf()];
+    for w in written(&p.spec, &p.templates, first, last) {
+        dirs.extend(out_dir.join(&w.path).parent().map(Into::into));
+    }
+    for w in writers {
+        dirs.extend(
+            w.sequence_source(first)
+                .and_then(|s| s.parent().map(Into::into)),
+        );
+    }
+    dirs.sort();
+    dirs.dedup();
+    dirs
 }
 
 #[cfg(test)]
@@ -84,5 +122,21 @@ mod tests {
         assert_eq!(temporary_owner("f_0001_left.png"), None);
         assert_eq!(temporary_owner(".hidden"), None);
         assert_eq!(temporary_owner(".a.tmp-x"), None);
+    }
+
+    #[test]
+    fn this_process_runs_and_a_reaped_one_does_not() {
+        let proc = Path::new("/proc");
+        if !proc.join("self").exists() {
+            return;
+        }
+        assert!(running(proc, std::process::id()));
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        // Exited but not yet reaped: a zombie.
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        assert!(!running(proc, pid));
+        child.wait().unwrap();
+        assert!(!running(proc, pid));
     }
 }

@@ -2,29 +2,37 @@
 //! defaults), `output_spec` (every output kind's keys and facts), `location` (key paths to line
 //! and column), `validate` (the rules), `edit` (setting keys by path for `bench sweep`),
 //! `template` (output paths), then the frame loop: `run` drives it, `trace` traces one frame,
-//! `outputs` writes what each output makes of it. `LoadedPipeline` is the front door: a file read,
-//! checked and with its scene loaded.
+//! `outputs` writes what each output makes of it. A render farm splits the range (`shard`),
+//! records each finished frame (`manifest`) and joins the shards' work (`assemble`).
+//! `LoadedPipeline` is the front door: a file read, checked and with its scene loaded.
 
+mod assemble;
 mod collisions;
 mod edit;
+mod frame_log;
 mod interrupt;
 mod location;
+mod manifest;
 mod output_spec;
 mod outputs;
 pub mod run;
 mod schema;
+mod shard;
 mod starter;
 mod template;
 mod trace;
 mod validate;
 
+pub use assemble::{Assembled, assemble};
+pub use frame_log::FRAME_LOG_COLUMNS;
 pub use location::{Key, line_column};
 pub use output_spec::{ExrViews, OutputSpec, PairLayout};
 pub use outputs::StereoFrame;
-pub use run::{FRAME_LOG_COLUMNS, RunOptions, RunSummary, run};
+pub use run::{RunOptions, RunSummary, run};
 pub use schema::{
     AccelSection, FramesSection, Pipeline, RenderSection, SceneSection, Selector, StereoSection,
 };
+pub use shard::{Shard, ShardArg, parse_shard};
 pub use starter::new_pipeline;
 pub use template::PathTemplate;
 pub use trace::{FrameStats, FrameTracer};

@@ -1,8 +1,9 @@
 //! One writer per `[[output]]`: it receives every stereo frame in order and turns it into files.
 //! Writers keep state across frames where their kind needs it (pseudo-stereo's delayed frames, a
-//! wobble GIF's frames, a video stream) and finish at the end of the range. The image work itself
-//! lives in `output/`; this module only routes frames and paths.
+//! wobble GIF's frames, a video stream) in a `Sequence` and finish at the end of the range. The
+//! image work itself lives in `output/`; this module only routes frames and paths.
 
+use super::LoadedPipeline;
 use super::output_spec::{ExrViews, OutputSpec, PairLayout};
 use super::template::PathTemplate;
 use crate::error::{Error, Result};
@@ -36,58 +37,102 @@ impl StereoFrame {
     }
 }
 
+/// An 8-bit sRGB frame: width, height and RGB bytes.
+pub type Rgb8 = (usize, usize, Vec<u8>);
+
+/// The folder under `--out` where a render keeps the 8-bit frames that pseudo-stereo and
+/// whole-range wobble GIFs are made from, so that `assemble` can make them from a farm's shards.
+pub const SEQUENCE_FRAMES: &str = "sequence-frames";
+
+/// What one output writes of each frame on its own: the files that depend on that frame alone.
+/// What needs the frames before it (a video, pseudo-stereo's delayed channels, a GIF over the
+/// range) is a `Sequence`'s, fed with the 8-bit frames this returns.
 pub struct Writer {
     spec: OutputSpec,
     template: PathTemplate,
     /// The rig's own views, for EXR and PNG.
     rig: Vec<View>,
-    video: Option<VideoEncoder>,
-    pseudo: Option<PseudoStereo>,
-    gif_frames: Vec<Vec<u8>>,
-    gif_size: (usize, usize),
     out_dir: PathBuf,
-    /// Index of the next frame within the range.
-    k: usize,
+    /// The output's number in the pipeline, from 1.
+    number: usize,
+    /// The pipeline's first frame: a frame's place in the range picks its wobble view.
+    range_start: u32,
+}
+
+/// The files one frame of one output made, and the 8-bit frame its sequence takes.
+pub struct FrameFiles {
+    pub files: Vec<PathBuf>,
+    pub sequence: Option<Rgb8>,
+}
+
+/// Whether an output makes files from the whole sequence of frames.
+fn has_sequence(spec: &OutputSpec) -> bool {
+    spec.video().is_some() || stores_frames(spec)
+}
+
+/// Whether the 8-bit frames a sequence takes are stored apart (pseudo-stereo's source eye, a
+/// range GIF's view) rather than being the output's own per-frame files.
+fn stores_frames(spec: &OutputSpec) -> bool {
+    matches!(spec, OutputSpec::PseudoStereo { .. }) || spec.single_file()
 }
 
 impl Writer {
+    /// One writer per output, numbered from 1.
+    pub fn all(p: &LoadedPipeline, out_dir: &Path) -> Vec<Writer> {
+        let rig = p.rig_views();
+        p.spec
+            .outputs
+            .iter()
+            .zip(&p.templates)
+            .enumerate()
+            .map(|(i, (o, t))| Writer::new(o, t, &rig, out_dir, i + 1, p.spec.frames.start))
+            .collect()
+    }
+
     pub fn new(
         spec: &OutputSpec,
         template: &PathTemplate,
         rig: &[View],
         out_dir: &Path,
-        fps: f32,
+        number: usize,
+        range_start: u32,
     ) -> Writer {
-        let pseudo = match spec {
-            OutputSpec::PseudoStereo {
-                channels_now,
-                delay,
-                ..
-            } => Some(PseudoStereo::new(*channels_now, *delay)),
-            _ => None,
-        };
         Writer {
             spec: spec.clone(),
             template: template.clone(),
             rig: rig.to_vec(),
-            video: spec
-                .video()
-                .map(|v| VideoEncoder::new(out_dir.join(v), fps)),
-            pseudo,
-            gif_frames: Vec::new(),
-            gif_size: (0, 0),
             out_dir: out_dir.to_path_buf(),
-            k: 0,
+            number,
+            range_start,
         }
     }
 
-    /// Writes (or stores) what this output makes of one frame; returns the files written.
-    pub fn frame(&mut self, f: &StereoFrame) -> Result<Vec<PathBuf>> {
+    /// The file holding the 8-bit frame this output's sequence takes at `frame`, if it has a
+    /// sequence.
+    pub fn sequence_source(&self, frame: u32) -> Option<PathBuf> {
+        if !has_sequence(&self.spec) {
+            None
+        } else if stores_frames(&self.spec) {
+            Some(self.stored_frame(frame))
+        } else {
+            Some(self.template.path(&self.out_dir, frame, ""))
+        }
+    }
+
+    fn stored_frame(&self, frame: u32) -> PathBuf {
+        self.out_dir
+            .join(SEQUENCE_FRAMES)
+            .join(format!("output-{}", self.number))
+            .join(format!("{frame:06}.png"))
+    }
+
+    /// Writes the files this output makes of one frame alone (and the stored sequence frame).
+    pub fn frame(&self, f: &StereoFrame) -> Result<FrameFiles> {
         let display = self.spec.display();
         let path = |eye: &str| self.template.path(&self.out_dir, f.frame, eye);
         let mut files = Vec::new();
-        // Sequence outputs make one 8-bit image per frame: a PNG, and a video frame if asked.
-        let sequence: Option<(usize, usize, Vec<u8>)> = match &self.spec {
+        // The kinds that make one 8-bit image per frame return it here.
+        let image: Option<Rgb8> = match &self.spec {
             OutputSpec::Exr { half, views, .. } => {
                 let eyes: Vec<(String, &Image)> = self
                     .rig
@@ -160,13 +205,7 @@ impl Writer {
                 &display,
             )),
             OutputSpec::PseudoStereo { eye, .. } => {
-                let img = f.view(View::Eye(*eye))?.clone();
-                let out = self
-                    .pseudo
-                    .as_mut()
-                    .expect("pseudo-stereo writers have state")
-                    .push(img);
-                Some(encode(&out, &display))
+                Some(encode(f.view(View::Eye(*eye))?, &display))
             }
             OutputSpec::WobbleGif {
                 views,
@@ -177,55 +216,120 @@ impl Writer {
                 dither,
                 ..
             } => {
-                let needed = self.spec.views(&self.rig, self.k);
-                let order = if *per_frame {
-                    wobble_schedule(*views, *mode)
-                } else {
-                    vec![0]
-                };
-                let mut frames = Vec::new();
-                for &i in &order {
-                    let (w, h, rgb) = encode(f.view(needed[i])?, &display);
-                    self.gif_size = (w, h);
-                    frames.push(rgb);
-                }
+                let k = f.frame.saturating_sub(self.range_start) as usize;
+                let needed = self.spec.views(&self.rig, k);
                 if *per_frame {
+                    let mut frames = Vec::new();
+                    let mut size = (0, 0);
+                    for &i in &wobble_schedule(*views, *mode) {
+                        let (w, h, rgb) = encode(f.view(needed[i])?, &display);
+                        size = (w, h);
+                        frames.push(rgb);
+                    }
                     let p = path("");
-                    write_gif(
-                        &p,
-                        self.gif_size.0,
-                        self.gif_size.1,
-                        &frames,
-                        *delay_ms,
-                        *loop_count,
-                        *dither,
-                    )?;
+                    write_gif(&p, size.0, size.1, &frames, *delay_ms, *loop_count, *dither)?;
                     files.push(p);
+                    None
                 } else {
-                    self.gif_frames.extend(frames);
+                    Some(encode(f.view(needed[0])?, &display))
                 }
-                None
             }
         };
-        if let Some((w, h, rgb)) = sequence {
-            let p = path("");
-            write_rgb8(&p, w, h, &rgb)?;
-            files.push(p);
-            if let Some(v) = self.video.as_mut() {
-                v.push(w, h, &rgb)?;
-            }
+        let Some((w, h, rgb)) = image else {
+            return Ok(FrameFiles {
+                files,
+                sequence: None,
+            });
+        };
+        let p = if stores_frames(&self.spec) {
+            self.stored_frame(f.frame)
+        } else {
+            path("")
+        };
+        write_rgb8(&p, w, h, &rgb)?;
+        files.push(p);
+        Ok(FrameFiles {
+            files,
+            sequence: has_sequence(&self.spec).then_some((w, h, rgb)),
+        })
+    }
+}
+
+/// The files one output makes of the whole sequence: a video, pseudo-stereo's composited
+/// frames, a wobble GIF over the range. It takes the output's 8-bit frames in frame order,
+/// straight from the frame loop or, in `assemble`, from the files the shards wrote.
+pub struct Sequence {
+    spec: OutputSpec,
+    template: PathTemplate,
+    out_dir: PathBuf,
+    video: Option<VideoEncoder>,
+    pseudo: Option<PseudoStereo>,
+    gif_frames: Vec<Vec<u8>>,
+    gif_size: (usize, usize),
+}
+
+impl Sequence {
+    /// `None` for an output that makes nothing from the whole sequence.
+    pub fn new(
+        spec: &OutputSpec,
+        template: &PathTemplate,
+        out_dir: &Path,
+        fps: f32,
+    ) -> Option<Sequence> {
+        if !has_sequence(spec) {
+            return None;
         }
-        self.k += 1;
+        let pseudo = match spec {
+            OutputSpec::PseudoStereo {
+                channels_now,
+                delay,
+                ..
+            } => Some(PseudoStereo::new(*channels_now, *delay)),
+            _ => None,
+        };
+        Some(Sequence {
+            spec: spec.clone(),
+            template: template.clone(),
+            out_dir: out_dir.to_path_buf(),
+            video: spec
+                .video()
+                .map(|v| VideoEncoder::new(out_dir.join(v), fps)),
+            pseudo,
+            gif_frames: Vec::new(),
+            gif_size: (0, 0),
+        })
+    }
+
+    /// Takes the next frame; returns the files it made at once (pseudo-stereo's frames).
+    pub fn push(&mut self, frame: u32, (w, h, rgb): Rgb8) -> Result<Vec<PathBuf>> {
+        let mut files = Vec::new();
+        let rgb = match self.pseudo.as_mut() {
+            Some(pseudo) => {
+                let out = pseudo.push(rgb);
+                let p = self.template.path(&self.out_dir, frame, "");
+                write_rgb8(&p, w, h, &out)?;
+                files.push(p);
+                out
+            }
+            None => rgb,
+        };
+        if let Some(v) = self.video.as_mut() {
+            v.push(w, h, &rgb)?;
+        }
+        if self.spec.single_file() {
+            self.gif_size = (w, h);
+            self.gif_frames.push(rgb);
+        }
         Ok(files)
     }
 
-    /// Whether this output makes a file of the whole range (a video, a wobble GIF over the
+    /// Whether this sequence makes a file of the whole range (a video, a wobble GIF over the
     /// animation), written by `finish`.
     pub fn spans_range(&self) -> bool {
         self.video.is_some() || self.spec.single_file()
     }
 
-    /// Completes outputs that span the range (a wobble GIF over the animation, videos).
+    /// Completes the files that span the range.
     pub fn finish(self) -> Result<Vec<PathBuf>> {
         let mut files = Vec::new();
         if let OutputSpec::WobbleGif {

@@ -1,11 +1,17 @@
 //! The frame loop: for every frame, pose the scene, bring the kd-tree up to date, trace each eye
 //! once, and hand the stereo frame to every output. Data flows one way:
-//! scene -> accel -> render -> outputs.
+//! scene -> accel -> render -> outputs. After each frame's files are in place, a manifest line
+//! records them (see `manifest`); a farm run (`--shard`, `--resume`) leaves what needs the whole
+//! sequence to `assemble`, a plain run makes it as the frames come.
 
 use super::LoadedPipeline;
-use super::collisions::{FRAME_LOG, check_inputs_untouched, written};
-use super::interrupt;
-use super::outputs::Writer;
+use super::assemble::assemble;
+use super::collisions::check_inputs_untouched;
+use super::frame_log::{self, FRAME_LOG, FRAME_LOG_COLUMNS};
+use super::interrupt::{self, output_dirs};
+use super::manifest::{self, Entry, MANIFEST, Manifest, describe_stale};
+use super::outputs::{FrameFiles, Sequence, Writer};
+use super::shard::{Shard, ShardArg};
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
 use crate::output::write_csv;
@@ -13,7 +19,7 @@ use crate::render::{RayCounts, View, tile_count};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Clone, Debug)]
@@ -25,6 +31,10 @@ pub struct RunOptions {
     pub out_dir: PathBuf,
     /// Draw progress bars (the caller decides: not with --quiet, not when stderr is no terminal).
     pub progress: bool,
+    /// Render only this block of the range (a render farm's task).
+    pub shard: Option<ShardArg>,
+    /// Skip the frames the manifest shows finished, by this pipeline, with unchanged files.
+    pub resume: bool,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -40,11 +50,16 @@ pub struct RunSummary {
     pub files: Vec<PathBuf>,
     /// Temporary files of an earlier run that was killed, removed before this one.
     pub stale_removed: Vec<PathBuf>,
+    /// What a farm run skipped and why, and what is left to do.
+    pub notes: Vec<String>,
 }
 
 impl fmt::Display for RunSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let r = &self.rays;
+        for note in &self.notes {
+            writeln!(f, "{note}")?;
+        }
         if let Some(first) = self.stale_removed.first() {
             writeln!(
                 f,
@@ -52,6 +67,9 @@ impl fmt::Display for RunSummary {
                 self.stale_removed.len(),
                 first.display()
             )?;
+        }
+        if self.frames == 0 {
+            return write!(f, "rendered no frames");
         }
         write!(
             f,
@@ -105,27 +123,127 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
             ),
         ));
     }
-    check_inputs_untouched(p, &opts.out_dir, start, end)?;
+    let shard = opts
+        .shard
+        .map(|s| s.resolve(|name| std::env::var(name).ok()))
+        .transpose()
+        .map_err(|m| Error::input(Path::new("--shard"), m))?;
+    let mut notes = Vec::new();
+    let (first, last) = match shard.map(|s| (s, s.block(start, end))) {
+        None => (start, end),
+        Some((_, Some(block))) => block,
+        Some((s, None)) => {
+            notes.push(format!(
+                "shard {s} has no frames: {start}..{end} has only {} (nothing to do)",
+                end - start + 1
+            ));
+            return Ok(RunSummary {
+                notes,
+                ..RunSummary::default()
+            });
+        }
+    };
+    check_inputs_untouched(p, &opts.out_dir, first, last)?;
     interrupt::install()?;
-    let stale = interrupt::remove_stale_temporaries(&output_dirs(p, opts, start));
+    let writers = Writer::all(p, &opts.out_dir);
+    let stale = interrupt::remove_stale_temporaries(&output_dirs(
+        p,
+        &writers,
+        &opts.out_dir,
+        (first, last),
+    ));
+    let fingerprint = manifest::fingerprint(p)?;
+    let mut frames: Vec<u32> = (first..=last).collect();
+    if opts.resume {
+        let found = Manifest::read(&opts.out_dir)?;
+        let total = frames.len();
+        let mut redo = Vec::new();
+        frames.retain(
+            |&f| match found.current(&opts.out_dir, &fingerprint, Some(f), None) {
+                Ok(_) => false,
+                Err(why) => {
+                    redo.push((why, f));
+                    true
+                }
+            },
+        );
+        notes.push(format!(
+            "resume: {} of {total} frame(s) finished and unchanged, skipped; rendering {}",
+            total - frames.len(),
+            frames.len()
+        ));
+        notes.extend(describe_stale(&redo).into_iter().map(|l| format!("  {l}")));
+        if found.torn > 0 {
+            notes.push(format!(
+                "  ignored {} torn manifest line(s), written by a run that was killed",
+                found.torn
+            ));
+        }
+    }
+    let plan = Plan {
+        frames,
+        fingerprint,
+        manifest: opts.out_dir.join(match shard {
+            Some(s) => format!("manifest-shard-{}-of-{}.jsonl", s.index, s.count),
+            None => MANIFEST.to_string(),
+        }),
+        streaming: !opts.resume && shard.is_none(),
+    };
     let threads = opts.threads.unwrap_or(spec.render.threads);
-    let mut summary = crate::thread_pool(threads)?.install(|| run_frames(p, opts, start, end))?;
+    let pool = crate::thread_pool(threads)?;
+    let mut summary = pool.install(|| run_frames(p, opts, writers, &plan))?;
     summary.stale_removed = stale;
+    if !plan.streaming {
+        if shard.is_none() && (first, last) == (spec.frames.start, spec.frames.end) {
+            let t = Instant::now();
+            let assembled = pool.install(|| assemble(p, &opts.out_dir))?;
+            summary.output_seconds += t.elapsed().as_secs_f64();
+            notes.push(assembled.to_string());
+            summary.files.extend(assembled.files);
+        } else {
+            notes.push(farm_hint(p, opts, shard, (first, last)));
+        }
+    }
+    notes.append(&mut summary.notes);
+    summary.notes = notes;
     Ok(summary)
 }
 
-/// The folders this run writes into: `--out`, and those of the outputs' first files and videos.
-fn output_dirs(p: &LoadedPipeline, opts: &RunOptions, start: u32) -> Vec<PathBuf> {
-    let mut dirs = vec![opts.out_dir.clone()];
-    for w in written(&p.spec, &p.templates, start, start) {
-        dirs.extend(opts.out_dir.join(&w.path).parent().map(Into::into));
-    }
-    dirs.sort();
-    dirs.dedup();
-    dirs
+/// What a farm run that did not cover the whole range leaves to do.
+fn farm_hint(
+    p: &LoadedPipeline,
+    opts: &RunOptions,
+    shard: Option<Shard>,
+    (a, b): (u32, u32),
+) -> String {
+    let which = shard.map_or(String::new(), |s| format!("shard {s}: "));
+    format!(
+        "{which}frames {a}..{b} are done. When every frame of {}..{} is, `stereotrace assemble {} --out {}` \
+         checks them, merges the frame logs and writes what needs the whole sequence",
+        p.spec.frames.start,
+        p.spec.frames.end,
+        p.file.display(),
+        opts.out_dir.display()
+    )
 }
 
-fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Result<RunSummary> {
+/// Which frames a run renders and how it records them.
+struct Plan {
+    frames: Vec<u32>,
+    fingerprint: String,
+    /// This run's manifest file.
+    manifest: PathBuf,
+    /// Make the sequence outputs as frames come (a plain run), rather than leave them to
+    /// `assemble`.
+    streaming: bool,
+}
+
+fn run_frames(
+    p: &LoadedPipeline,
+    opts: &RunOptions,
+    writers: Vec<Writer>,
+    plan: &Plan,
+) -> Result<RunSummary> {
     let spec = &p.spec;
     let t0 = Instant::now();
     let rig = p.rig_views();
@@ -141,7 +259,7 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
     // and too unevenly for an estimate of their own.
     let frame_bar = bar(
         &multi,
-        (end - start + 1) as u64,
+        plan.frames.len() as u64,
         "{elapsed_precise} frames [{wide_bar}] {pos}/{len} eta {eta_precise}",
     );
     let tile_bar = bar(
@@ -150,22 +268,26 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
         "         tiles  [{wide_bar}] {pos}/{len} {msg}",
     );
 
-    let mut writers: Vec<Writer> = p
-        .spec
-        .outputs
-        .iter()
-        .zip(&p.templates)
-        .map(|(o, t)| Writer::new(o, t, &rig, &opts.out_dir, spec.frames.fps))
-        .collect();
+    let mut sequences: Vec<Sequence> = if plan.streaming {
+        spec.outputs
+            .iter()
+            .zip(&p.templates)
+            .filter_map(|(o, t)| Sequence::new(o, t, &opts.out_dir, spec.frames.fps))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut sequence_files = Vec::new();
     let mut summary = RunSummary::default();
     let mut log: Vec<Vec<String>> = Vec::new();
     let mut tracer = FrameTracer::new(p).with_stop(interrupt::flag());
-    let mut finished = None;
-    for (k, frame) in (start..=end).enumerate() {
+    let mut finished = Vec::new();
+    for &frame in &plan.frames {
         if interrupt::requested() {
             break;
         }
         tile_bar.reset();
+        let k = frame.saturating_sub(spec.frames.start) as usize;
         let views = views_needed(p, &rig, k);
         tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
         tile_bar.set_message(format!("frame {frame}"));
@@ -174,68 +296,69 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             // Tiles may have been skipped: the frame is not written.
             break;
         }
-        let mut view_seconds = [0f64; 3];
-        for (view, secs) in &stats.view_seconds {
-            view_seconds[match *view {
-                View::LEFT => 0,
-                View::RIGHT => 1,
-                _ => 2,
-            }] += secs;
-        }
         summary.trace_seconds += stats.trace_seconds();
         summary.rays.add(&stats.rays);
         summary.eyes_traced += stats.view_seconds.len();
-        for row in &stats.update {
-            log.push(vec![
-                frame.to_string(),
-                row.object.clone(),
-                row.action.to_string(),
-                row.reason.to_string(),
-                format!("{:.6}", stats.pose_seconds),
-                format!("{:.6}", row.seconds),
-                format!("{:.6}", view_seconds[0]),
-                format!("{:.6}", view_seconds[1]),
-                format!("{:.6}", view_seconds[2]),
-                row.sah_cost.map(|c| format!("{c:.3}")).unwrap_or_default(),
-                stats.rays.reused_primary.to_string(),
-                stats.rays.primary.to_string(),
-                stats.rays.reused_shadow.to_string(),
-                stats.rays.reused_radiance.to_string(),
-            ]);
-        }
+        let rows = frame_log::rows(frame, &stats);
         let t = Instant::now();
-        // Writers are independent (each its own files and state), so they encode in parallel;
-        // the files are listed in output order whatever finished first.
-        let written: Vec<Result<Vec<PathBuf>>> =
-            writers.par_iter_mut().map(|wr| wr.frame(&stereo)).collect();
-        for files in written {
-            summary.files.extend(files?);
+        // Writers are independent (each its own files), so they encode in parallel; the files
+        // are listed in output order whatever finished first.
+        let made: Vec<FrameFiles> = writers
+            .par_iter()
+            .map(|wr| wr.frame(&stereo))
+            .collect::<Result<_>>()?;
+        let mut files = Vec::new();
+        let mut sequence_frames = Vec::new();
+        for m in made {
+            files.extend(m.files);
+            sequence_frames.extend(m.sequence);
         }
+        // Every file of the frame is in place: now the manifest may say so.
+        manifest::append(
+            &plan.manifest,
+            &Entry {
+                frame: Some(frame),
+                sequence: None,
+                fingerprint: plan.fingerprint.clone(),
+                files: manifest::record(&opts.out_dir, &files)?,
+                log: rows.clone(),
+            },
+        )?;
+        let pushed: Vec<Vec<PathBuf>> = sequences
+            .par_iter_mut()
+            .zip(sequence_frames)
+            .map(|(seq, rgb)| seq.push(frame, rgb))
+            .collect::<Result<_>>()?;
+        sequence_files.extend(pushed.into_iter().flatten());
+        summary.files.extend(files);
         summary.output_seconds += t.elapsed().as_secs_f64();
+        log.extend(rows);
         summary.frames += 1;
-        finished = Some(frame);
+        finished.push(frame);
         frame_bar.inc(1);
     }
     let log_path = opts.out_dir.join(FRAME_LOG);
     if interrupt::requested() {
-        // Dropping the writers stops their encoders and removes their temporary files.
-        let whole_range = writers.iter().any(Writer::spans_range);
-        drop(writers);
-        write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
+        // Dropping the sequences stops their encoders and removes their temporary files.
+        let whole_range = sequences.iter().any(Sequence::spans_range);
+        drop(sequences);
+        if plan.streaming {
+            write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
+        }
         tile_bar.finish_and_clear();
         frame_bar.finish_and_clear();
-        let done = match finished {
-            Some(last) => format!(
-                "frames {start}..{last} are finished and kept ({} files)",
+        let done = match (finished.first(), finished.last()) {
+            (Some(a), Some(b)) => format!(
+                "{} frame(s) from {a} to {b} are finished and kept ({} files)",
+                finished.len(),
                 summary.files.len()
             ),
-            None => "no frame was finished".to_string(),
+            _ => "no frame was finished".to_string(),
         };
-        let next = finished.map_or(start, |f| f + 1);
         return Err(Error::Interrupted {
             message: format!(
-                "{done}, and {} lists them. Continue with --frames {next}..{end}{}",
-                log_path.display(),
+                "{done}; the manifest in {} lists them. The same command with --resume renders the rest{}",
+                opts.out_dir.display(),
                 if whole_range {
                     " (videos and whole-range GIFs need the whole range: they were not written)"
                 } else {
@@ -244,43 +367,35 @@ fn run_frames(p: &LoadedPipeline, opts: &RunOptions, start: u32, end: u32) -> Re
             ),
         });
     }
-    let t = Instant::now();
-    for wr in writers {
-        summary.files.extend(wr.finish()?);
+    if plan.streaming {
+        let t = Instant::now();
+        for seq in sequences {
+            sequence_files.extend(seq.finish()?);
+        }
+        summary.output_seconds += t.elapsed().as_secs_f64();
+        if let (Some(&a), Some(&b)) = (plan.frames.first(), plan.frames.last())
+            && !sequence_files.is_empty()
+        {
+            manifest::append(
+                &plan.manifest,
+                &Entry {
+                    frame: None,
+                    sequence: Some((a, b)),
+                    fingerprint: plan.fingerprint.clone(),
+                    files: manifest::record(&opts.out_dir, &sequence_files)?,
+                    log: Vec::new(),
+                },
+            )?;
+        }
+        summary.files.extend(sequence_files);
+        write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
+        summary.files.push(log_path);
     }
-    summary.output_seconds += t.elapsed().as_secs_f64();
-    write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
-
-    summary.files.push(log_path);
     tile_bar.finish_and_clear();
     frame_bar.finish_and_clear();
     summary.seconds = t0.elapsed().as_secs_f64();
     Ok(summary)
 }
-
-/// Columns of `frame-log.csv`: one row per frame and object, what the acceleration update did
-/// and why, and where the time went (`update_s` per object; `left_s`, `right_s`, `other_s`: the
-/// frame's tracing per view, repeated on each of its rows; `sah_cost` when a tree was built;
-/// `reused_samples`: camera samples that took another view's hit under `eye_reuse =
-/// "reproject"`, `traced_samples`: those that traced their camera ray, `reused_shadow_rays`:
-/// shadow answers taken with the reused hits, `reused_radiance_samples`: reused samples that
-/// took the radiance too under `"reproject-radiance"`; all per frame).
-pub const FRAME_LOG_COLUMNS: [&str; 14] = [
-    "frame",
-    "object",
-    "action",
-    "reason",
-    "pose_s",
-    "update_s",
-    "left_s",
-    "right_s",
-    "other_s",
-    "sah_cost",
-    "reused_samples",
-    "traced_samples",
-    "reused_shadow_rays",
-    "reused_radiance_samples",
-];
 
 /// The union of the views the outputs need for frame `k` of the range, each traced once, in
 /// trace order (left, right, centre, then intermediate wobble views left to right).

@@ -115,6 +115,9 @@ fn load_skin(path: &Path, buffers: &[Vec<u8>], sk: &gltf::Skin, node_count: usiz
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub source: PathBuf,
+    /// Every file the scene is made of: `source`, then the buffers and images its URIs name
+    /// (what a render farm's fingerprint hashes).
+    pub files: Vec<PathBuf>,
     pub nodes: Vec<Node>,
     /// Root nodes of the rendered glTF scene.
     pub roots: Vec<usize>,
@@ -129,6 +132,25 @@ pub struct Scene {
     pub skins: Vec<Skin>,
     /// Things the loader skipped or approximated; the command line prints them.
     pub warnings: Vec<String>,
+}
+
+/// The scene file and the files its buffer and image URIs name (`data:` URIs are inside it).
+fn scene_files(path: &Path, document: &gltf::Document) -> Result<Vec<PathBuf>> {
+    let buffers = document.buffers().filter_map(|b| match b.source() {
+        gltf::buffer::Source::Uri(uri) => Some((format!("buffers[{}]", b.index()), uri)),
+        gltf::buffer::Source::Bin => None,
+    });
+    let images = document.images().filter_map(|i| match i.source() {
+        gltf::image::Source::Uri { uri, .. } => Some((format!("images[{}]", i.index()), uri)),
+        gltf::image::Source::View { .. } => None,
+    });
+    let mut files = vec![path.to_path_buf()];
+    for (object, uri) in buffers.chain(images) {
+        if !uri.starts_with("data:") {
+            files.push(buffers::resolve_relative(path, &object, uri)?);
+        }
+    }
+    Ok(files)
 }
 
 impl Scene {
@@ -225,6 +247,7 @@ impl Scene {
         }
         Ok(Scene {
             source: path.to_path_buf(),
+            files: scene_files(path, document)?,
             nodes,
             roots,
             meshes,

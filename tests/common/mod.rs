@@ -71,6 +71,8 @@ pub fn render_reference(dir: &Path) -> Vec<(String, Image)> {
             threads: None,
             out_dir: out.clone(),
             progress: false,
+            shard: None,
+            resume: false,
         },
     )
     .unwrap();

@@ -1,0 +1,67 @@
+//! `frame-log.csv`: one row per frame and object, what the acceleration update did and why, and
+//! where the frame's time went. A plain run writes it at the end; a farm's shards keep their rows
+//! in the manifest and `assemble` merges them.
+
+use super::FrameStats;
+use crate::render::View;
+
+/// The frame log every run writes beside the outputs.
+pub const FRAME_LOG: &str = "frame-log.csv";
+
+/// Columns of `frame-log.csv`: one row per frame and object, what the acceleration update did
+/// and why, and where the time went (`update_s` per object; `left_s`, `right_s`, `other_s`: the
+/// frame's tracing per view, repeated on each of its rows; `sah_cost` when a tree was built;
+/// `reused_samples`: camera samples that took another view's hit under `eye_reuse =
+/// "reproject"`, `traced_samples`: those that traced their camera ray, `reused_shadow_rays`:
+/// shadow answers taken with the reused hits, `reused_radiance_samples`: reused samples that
+/// took the radiance too under `"reproject-radiance"`; all per frame).
+pub const FRAME_LOG_COLUMNS: [&str; 14] = [
+    "frame",
+    "object",
+    "action",
+    "reason",
+    "pose_s",
+    "update_s",
+    "left_s",
+    "right_s",
+    "other_s",
+    "sah_cost",
+    "reused_samples",
+    "traced_samples",
+    "reused_shadow_rays",
+    "reused_radiance_samples",
+];
+
+/// The frame's rows of `frame-log.csv`: one per object the acceleration update touched.
+pub fn rows(frame: u32, stats: &FrameStats) -> Vec<Vec<String>> {
+    let mut view_seconds = [0f64; 3];
+    for (view, secs) in &stats.view_seconds {
+        view_seconds[match *view {
+            View::LEFT => 0,
+            View::RIGHT => 1,
+            _ => 2,
+        }] += secs;
+    }
+    stats
+        .update
+        .iter()
+        .map(|row| {
+            vec![
+                frame.to_string(),
+                row.object.clone(),
+                row.action.to_string(),
+                row.reason.to_string(),
+                format!("{:.6}", stats.pose_seconds),
+                format!("{:.6}", row.seconds),
+                format!("{:.6}", view_seconds[0]),
+                format!("{:.6}", view_seconds[1]),
+                format!("{:.6}", view_seconds[2]),
+                row.sah_cost.map(|c| format!("{c:.3}")).unwrap_or_default(),
+                stats.rays.reused_primary.to_string(),
+                stats.rays.primary.to_string(),
+                stats.rays.reused_shadow.to_string(),
+                stats.rays.reused_radiance.to_string(),
+            ]
+        })
+        .collect()
+}
