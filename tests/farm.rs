@@ -329,3 +329,159 @@ fn shard_auto_reads_slurm_and_kubernetes_variables() {
     assert!(err.contains("no scheduler variables are set"), "{err}");
     assert!(!out.exists());
 }
+
+/// A single-node Slurm cluster (`tests/farm/slurm-local.sh`: Debian's slurm-wlm and munge,
+/// installed if missing, daemons started without systemd), stopped when dropped. It needs root;
+/// without it the test fails, unless `STEREOTRACE_SKIP_SLURM=1` skips it knowingly.
+struct SlurmCluster {
+    dir: PathBuf,
+    conf: PathBuf,
+}
+
+impl SlurmCluster {
+    fn script() -> PathBuf {
+        repo().join("tests/farm/slurm-local.sh")
+    }
+
+    fn up(dir: &Path) -> Option<SlurmCluster> {
+        let root = Command::new("id")
+            .arg("-u")
+            .output()
+            .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+        if !root {
+            common::missing_tool(
+                "a local Slurm cluster (it must be started as root)",
+                "STEREOTRACE_SKIP_SLURM",
+            );
+            return None;
+        }
+        let o = Command::new("bash")
+            .arg(Self::script())
+            .arg("up")
+            .env("SLURM_CI_DIR", dir)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "the Slurm cluster did not start:\n{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        Some(SlurmCluster {
+            dir: dir.to_path_buf(),
+            conf: dir.join("slurm.conf"),
+        })
+    }
+
+    fn command(&self, program: impl AsRef<std::ffi::OsStr>) -> Command {
+        let mut c = Command::new(program);
+        c.env("SLURM_CONF", &self.conf);
+        c
+    }
+
+    /// Submits through `deploy/slurm/submit.sh`; returns the render array's and the assemble
+    /// job's ids.
+    fn submit(&self, bin: &Path, pipeline: &Path, out: &Path, tasks: u32) -> (String, String) {
+        let mut c = self.command(repo().join("deploy/slurm/submit.sh"));
+        c.arg(pipeline)
+            .arg(out)
+            .arg(tasks.to_string())
+            .env("STEREOTRACE", bin)
+            .env("STEREOTRACE_LOGS", out.with_extension("logs"));
+        let said = ok(c);
+        let id = |key: &str| {
+            said.split_whitespace()
+                .find_map(|w| w.strip_prefix(key))
+                .unwrap_or_else(|| panic!("no {key} in {said}"))
+                .to_string()
+        };
+        (id("render="), id("assemble="))
+    }
+
+    /// Waits until the jobs left the queue; returns each job's (or array task's) final state.
+    fn wait(&self, jobs: &[&str]) -> BTreeMap<String, String> {
+        let ids = jobs.join(",");
+        let t0 = std::time::Instant::now();
+        loop {
+            let o = self
+                .command("squeue")
+                .args(["-h", "-j", &ids])
+                .output()
+                .unwrap();
+            if String::from_utf8_lossy(&o.stdout).trim().is_empty() {
+                break;
+            }
+            assert!(t0.elapsed() < Duration::from_secs(300), "jobs {ids} did not end");
+            std::thread::sleep(Duration::from_millis(300));
+        }
+        let o = self
+            .command("squeue")
+            .args(["-h", "-t", "all", "-j", &ids, "-o", "%i %T"])
+            .output()
+            .unwrap();
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter_map(|l| l.split_once(' '))
+            .map(|(i, s)| (i.to_string(), s.to_string()))
+            .collect()
+    }
+}
+
+impl Drop for SlurmCluster {
+    fn drop(&mut self) {
+        let _ = Command::new("bash")
+            .arg(Self::script())
+            .arg("down")
+            .env("SLURM_CI_DIR", &self.dir)
+            .output();
+    }
+}
+
+#[test]
+fn a_slurm_job_array_then_its_assemble_job_make_what_one_run_makes() {
+    let dir = scratch("farm-slurm");
+    let Some(cluster) = SlurmCluster::up(&dir.join("cluster")) else {
+        return;
+    };
+    let p = pipeline(&dir, 0.35);
+    let single = reference(&dir, &p);
+    let bin = PathBuf::from(env!("CARGO_BIN_EXE_stereotrace"));
+
+    let out = dir.join("out");
+    let (render, assemble) = cluster.submit(&bin, &p, &out, 3);
+    let states = cluster.wait(&[&render, &assemble]);
+    assert_eq!(states.len(), 4, "three array tasks and the assemble job: {states:?}");
+    assert!(states.values().all(|s| s == "COMPLETED"), "{states:?}");
+    assert_same(&single, &out, "the Slurm render");
+    assert_eq!(frame_log_frames(&out), (3..=13).collect::<Vec<_>>());
+
+    // One task fails: the assemble job never runs (afterok, --kill-on-invalid-dep), nothing
+    // of the sequence is written; rerunning the task and assembling repairs it.
+    let failing = dir.join("failing-stereotrace");
+    std::fs::write(
+        &failing,
+        format!(
+            "#!/bin/sh\nif [ \"${{SLURM_ARRAY_TASK_ID:-}}\" = 1 ]; then echo 'failing on purpose' >&2; exit 3; fi\nexec {:?} \"$@\"\n",
+            bin
+        ),
+    )
+    .unwrap();
+    Command::new("chmod")
+        .arg("+x")
+        .arg(&failing)
+        .status()
+        .unwrap();
+    let out = dir.join("out-failed");
+    let (render, assemble) = cluster.submit(&failing, &p, &out, 3);
+    let states = cluster.wait(&[&render, &assemble]);
+    assert_eq!(states[&format!("{render}_1")], "FAILED", "{states:?}");
+    assert_ne!(
+        states.get(&assemble).map(String::as_str),
+        Some("COMPLETED"),
+        "{states:?}"
+    );
+    assert!(!out.join("wobble.gif").exists() && !out.join("frame-log.csv").exists());
+    ok(stereotrace(&["render", "--shard", "2/3", "--resume"], &p, &out));
+    ok(stereotrace(&["assemble"], &p, &out));
+    assert_same(&single, &out, "the Slurm render after its failed task was rerun");
+}

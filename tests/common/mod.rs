@@ -126,7 +126,7 @@ pub fn ffmpeg() -> bool {
 
 /// A tool a test compares against is missing: a failure naming how to get it, or with
 /// `skip_var=1` a skip said out loud (the test then checks nothing about that tool).
-fn missing_tool(tool: &str, skip_var: &str) {
+pub fn missing_tool(tool: &str, skip_var: &str) {
     if std::env::var(skip_var).as_deref() == Ok("1") {
         eprintln!("SKIPPED (by {skip_var}=1): the checks against {tool}");
         return;
