@@ -411,7 +411,10 @@ impl SlurmCluster {
             if String::from_utf8_lossy(&o.stdout).trim().is_empty() {
                 break;
             }
-            assert!(t0.elapsed() < Duration::from_secs(300), "jobs {ids} did not end");
+            assert!(
+                t0.elapsed() < Duration::from_secs(300),
+                "jobs {ids} did not end"
+            );
             std::thread::sleep(Duration::from_millis(300));
         }
         let o = self
@@ -450,7 +453,11 @@ fn a_slurm_job_array_then_its_assemble_job_make_what_one_run_makes() {
     let out = dir.join("out");
     let (render, assemble) = cluster.submit(&bin, &p, &out, 3);
     let states = cluster.wait(&[&render, &assemble]);
-    assert_eq!(states.len(), 4, "three array tasks and the assemble job: {states:?}");
+    assert_eq!(
+        states.len(),
+        4,
+        "three array tasks and the assemble job: {states:?}"
+    );
     assert!(states.values().all(|s| s == "COMPLETED"), "{states:?}");
     assert_same(&single, &out, "the Slurm render");
     assert_eq!(frame_log_frames(&out), (3..=13).collect::<Vec<_>>());
@@ -481,7 +488,15 @@ fn a_slurm_job_array_then_its_assemble_job_make_what_one_run_makes() {
         "{states:?}"
     );
     assert!(!out.join("wobble.gif").exists() && !out.join("frame-log.csv").exists());
-    ok(stereotrace(&["render", "--shard", "2/3", "--resume"], &p, &out));
+    ok(stereotrace(
+        &["render", "--shard", "2/3", "--resume"],
+        &p,
+        &out,
+    ));
     ok(stereotrace(&["assemble"], &p, &out));
-    assert_same(&single, &out, "the Slurm render after its failed task was rerun");
+    assert_same(
+        &single,
+        &out,
+        "the Slurm render after its failed task was rerun",
+    );
 }
