@@ -221,6 +221,27 @@ fn killed_at_any_moment_resume_ends_identical_with_no_temporaries() {
     assert_eq!(temporaries(&out), Vec::<PathBuf>::new(), "temporaries left");
     assert_eq!(frame_log_frames(&out), (3..=13).collect::<Vec<_>>());
 
+    // Shards killed and resumed in turn, then assembled.
+    let out = dir.join("shards");
+    for (k, ms) in [60, 120, 30, 90].iter().enumerate() {
+        let shard = format!("{}/2", k % 2 + 1);
+        killed(
+            &mut stereotrace(&["render", "--shard", &shard, "--resume"], &p, &out),
+            Duration::from_millis(*ms),
+        );
+    }
+    for shard in ["1/2", "2/2"] {
+        ok(stereotrace(
+            &["render", "--shard", shard, "--resume"],
+            &p,
+            &out,
+        ));
+    }
+    ok(stereotrace(&["assemble"], &p, &out));
+    assert_same(&single, &out, "shards after kill -9 and --resume");
+    assert_eq!(temporaries(&out), Vec::<PathBuf>::new(), "temporaries left");
+    let out = dir.join("out");
+
     // Nothing left to do: nothing is rendered again.
     let said = ok(stereotrace(&["render", "--resume"], &p, &out));
     assert!(

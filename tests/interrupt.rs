@@ -105,12 +105,22 @@ fn a_killed_runs_temporaries_are_removed_by_the_next_run() {
     let dir = scratch("interrupt-stale");
     let out = dir.join("out");
     std::fs::create_dir_all(&out).unwrap();
-    // Process 2^22 + 1 is above Linux's largest process id: it cannot be running.
-    let stale = [".f_0000_left.png.tmp-4194305", ".tmp-4194305-a.mp4"];
-    for s in stale {
+    // Process 2^22 + 1 is above Linux's largest process id: it cannot be running here.
+    let host = format!("{:08x}", stereotrace::output::host_id());
+    let stale = [
+        format!(".f_0000_left.png.tmp-4194305-{host}"),
+        format!(".tmp-4194305-{host}-a.mp4"),
+    ];
+    for s in &stale {
         std::fs::write(out.join(s), "partial").unwrap();
     }
     std::fs::write(out.join(".keep"), "not ours").unwrap();
+    // Another machine's worker writing into a shared folder: its process is not ours to judge.
+    let elsewhere = format!(
+        ".f_0001_left.png.tmp-4194305-{:08x}",
+        !stereotrace::output::host_id()
+    );
+    std::fs::write(out.join(&elsewhere), "being written").unwrap();
     let p = pipeline(&dir, false);
     let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
         .args(["render", "--frames", "0..0", "--out"])
@@ -125,12 +135,9 @@ fn a_killed_runs_temporaries_are_removed_by_the_next_run() {
         "{stderr}"
     );
     let names = files(&out);
+    assert!(stale.iter().all(|s| !names.contains(s)), "{names:?}");
     assert!(
-        stale.iter().all(|s| !names.contains(&s.to_string())),
-        "{names:?}"
-    );
-    assert!(
-        names.contains(&".keep".to_string()),
-        "other hidden files stay"
+        names.contains(&".keep".to_string()) && names.contains(&elsewhere),
+        "other hidden files and other machines' temporaries stay: {names:?}"
     );
 }

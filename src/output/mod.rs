@@ -34,6 +34,27 @@ use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
+/// FNV-1a (32-bit) of this machine's host name: the part of a temporary file's name that tells
+/// which machine wrote it. Render-farm workers on several machines write into one shared folder,
+/// and a process id means something only on its own machine.
+pub fn host_id() -> u32 {
+    static ID: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *ID.get_or_init(|| {
+        let name = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .or_else(|_| std::env::var("HOSTNAME"))
+            .unwrap_or_default();
+        // FNV-1a's 32-bit offset basis and prime (Fowler, Noll, Vo).
+        name.trim().bytes().fold(0x811c_9dc5, |h: u32, b| {
+            (h ^ u32::from(b)).wrapping_mul(0x0100_0193)
+        })
+    })
+}
+
+/// `PID-HOST` (process id, `host_id` in 8 hex digits): who is writing a temporary file.
+pub fn temporary_tag() -> String {
+    format!("{}-{:08x}", std::process::id(), host_id())
+}
+
 /// Writes a file through `fill` into a temporary sibling, then renames it into place.
 pub fn write_atomic(
     path: &Path,
@@ -48,7 +69,7 @@ pub fn write_atomic(
         .file_name()
         .map(|n| n.to_string_lossy())
         .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let tmp = dir.join(format!(".{name}.tmp-{}", temporary_tag()));
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
         let mut w = BufWriter::new(file);

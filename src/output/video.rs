@@ -41,7 +41,7 @@ impl VideoEncoder {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let tmp = path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
+        let tmp = path.with_file_name(format!(".tmp-{}-{name}", super::temporary_tag()));
         VideoEncoder {
             path,
             tmp,

@@ -7,6 +7,7 @@ use super::LoadedPipeline;
 use super::collisions::written;
 use super::outputs::Writer;
 use crate::error::{Error, Result};
+use crate::output::host_id;
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,14 +40,19 @@ pub fn requested() -> bool {
     REQUESTED.load(Ordering::SeqCst)
 }
 
-/// The process that made a temporary file, from its name: `.NAME.tmp-PID` (atomic writes) or
-/// `.tmp-PID-NAME` (videos, whose name must keep its extension for ffmpeg).
-fn temporary_owner(name: &str) -> Option<u32> {
+/// The process and machine that made a temporary file, from its name: `.NAME.tmp-PID-HOST`
+/// (atomic writes) or `.tmp-PID-HOST-NAME` (videos, whose name must keep its extension for
+/// ffmpeg), HOST being `output::host_id` in 8 hex digits.
+fn temporary_owner(name: &str) -> Option<(u32, u32)> {
     let rest = name.strip_prefix('.')?;
-    if let Some(r) = rest.strip_prefix("tmp-") {
-        return r.split('-').next()?.parse().ok();
-    }
-    rest.rsplit_once(".tmp-")?.1.parse().ok()
+    let tag = match rest.strip_prefix("tmp-") {
+        Some(r) => r,
+        None => rest.rsplit_once(".tmp-")?.1,
+    };
+    let mut parts = tag.splitn(3, '-');
+    let pid = parts.next()?.parse().ok()?;
+    let host = parts.next().filter(|h| h.len() == 8)?;
+    Some((pid, u32::from_str_radix(host, 16).ok()?))
 }
 
 /// Whether process `pid` runs. A killed process that its parent has not yet reaped (a zombie,
@@ -76,8 +82,10 @@ pub fn remove_stale_temporaries(dirs: &[PathBuf]) -> Vec<PathBuf> {
         };
         for e in entries.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            let stale = temporary_owner(&name)
-                .is_some_and(|pid| pid != std::process::id() && !running(proc, pid));
+            // Another machine's temporaries belong to a worker this one cannot see: kept.
+            let stale = temporary_owner(&name).is_some_and(|(pid, host)| {
+                host == host_id() && pid != std::process::id() && !running(proc, pid)
+            });
             if stale && e.path().is_file() && std::fs::remove_file(e.path()).is_ok() {
                 removed.push(e.path());
             }
@@ -117,11 +125,18 @@ mod tests {
 
     #[test]
     fn temporary_names_give_their_process() {
-        assert_eq!(temporary_owner(".f_0001_left.png.tmp-4242"), Some(4242));
-        assert_eq!(temporary_owner(".tmp-4242-anaglyph.mp4"), Some(4242));
+        let ours = |name: &str| name.replace("TAG", &crate::output::temporary_tag());
+        let me = Some((std::process::id(), host_id()));
+        assert_eq!(temporary_owner(&ours(".f_0001_left.png.tmp-TAG")), me);
+        assert_eq!(temporary_owner(&ours(".tmp-TAG-anaglyph.mp4")), me);
+        assert_eq!(
+            temporary_owner(".tmp-4242-00c0ffee-a-b.mkv"),
+            Some((4242, 0xc0ffee))
+        );
         assert_eq!(temporary_owner("f_0001_left.png"), None);
         assert_eq!(temporary_owner(".hidden"), None);
         assert_eq!(temporary_owner(".a.tmp-x"), None);
+        assert_eq!(temporary_owner(".a.tmp-4242"), None);
     }
 
     #[test]
