@@ -19,7 +19,7 @@
 //! a view present on one side only is a failure. Two files of one view each are compared
 //! directly, whatever their view names.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 pub use crate::output::Planes;
 use crate::output::exr;
 use crate::output::read_planes;
@@ -236,6 +236,34 @@ pub fn compare_files(a: &Path, b: &Path, t: &Thresholds) -> Result<FileCompariso
 
 /// `compare_files`, and with `diff = Some((out, scale))` the difference images too, reading
 /// each file once.
+/// The input a difference image at `path` would be written over, if any.
+fn overwritten_input<'a>(path: &Path, inputs: [&'a Path; 2]) -> Option<&'a Path> {
+    let target = std::fs::canonicalize(path).ok()?;
+    inputs
+        .into_iter()
+        .find(|i| std::fs::canonicalize(i).is_ok_and(|i| i == target))
+}
+
+fn refuse_overwrite(diff: &Path, input: &Path) -> Error {
+    Error::input(
+        diff,
+        format!(
+            "--diff would overwrite {}, an image being compared: choose another path",
+            input.display()
+        ),
+    )
+}
+
+/// Refuses a difference image that would be written over one of the images compared
+/// (`compare a.exr b.exr --diff a.exr`), before anything is read: bad usage, status 2. (The
+/// per-view names of a multi-view difference are checked again before each is written.)
+pub fn check_diff_target(a: &Path, b: &Path, diff: &Path) -> Result<()> {
+    match overwritten_input(diff, [a, b]) {
+        Some(input) => Err(refuse_overwrite(diff, input)),
+        None => Ok(()),
+    }
+}
+
 pub fn compare_files_with_diff(
     a: &Path,
     b: &Path,
@@ -245,7 +273,7 @@ pub fn compare_files_with_diff(
     let (va, vb) = (read_planes(a)?, read_planes(b)?);
     let result = compare_views(&va, &vb, t)?;
     if let Some((out, scale)) = diff {
-        write_differences(&va, &vb, out, scale)?;
+        write_differences(&va, &vb, out, scale, [a, b])?;
     }
     Ok(result)
 }
@@ -331,6 +359,7 @@ fn write_differences(
     vb: &[(String, Planes)],
     out: &Path,
     scale: f32,
+    inputs: [&Path; 2],
 ) -> Result<Vec<PathBuf>> {
     let several = va.len() > 1;
     let png = out
@@ -351,6 +380,9 @@ fn write_differences(
         } else {
             out.to_path_buf()
         };
+        if let Some(input) = overwritten_input(&path, inputs) {
+            return Err(refuse_overwrite(&path, input));
+        }
         let d = difference_planes(pa, pb, scale);
         if png {
             let grey: Vec<u8> = (0..d.width * d.height)
@@ -460,7 +492,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let out = dir.join("d.png");
         let views = |p: Planes| vec![("left".to_string(), p)];
-        let written = write_differences(&views(a), &views(b), &out, 2.0).unwrap();
+        let inputs = [Path::new("a.exr"), Path::new("b.exr")];
+        let written = write_differences(&views(a), &views(b), &out, 2.0, inputs).unwrap();
         assert_eq!(written, vec![out.clone()]);
         let img = image::open(&out).unwrap().to_rgb8();
         // max(0.1, 0.4, 0) * 2 = 0.8 -> 204; identical pixel -> 0.

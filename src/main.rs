@@ -129,6 +129,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
             scale,
             json,
         } => {
+            if let Some(d) = &diff {
+                compare::check_diff_target(&a, &b, d)?;
+            }
             let result = compare::compare_files_with_diff(
                 &a,
                 &b,

@@ -787,3 +787,95 @@ fn devices_pipes_and_absurd_thread_counts_are_refused() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
 }
+
+#[test]
+fn an_output_that_would_overwrite_a_file_of_the_scene() {
+    let c = Case::new("overwrite-scene-image");
+    // The scene names an image beside it; the outputs are written into the scene's folder.
+    c.file("img_left.png", b"an image of the scene");
+    c.file(
+        "s.gltf",
+        triangle_gltf(GOOD_TRIANGLE, |g| {
+            g["images"] = json!([{"uri": "img_left.png"}]);
+        }),
+    );
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(&c.dir)
+        .arg(&p)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("img_left.png, an input of this run"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read(c.dir.join("img_left.png")).unwrap(),
+        b"an image of the scene"
+    );
+}
+
+#[test]
+fn output_names_that_can_never_be_written() {
+    let c = Case::new("unwritable-names");
+    c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
+    let with = |outputs: &str| {
+        format!("[scene]\npath = \"s.gltf\"\n[render]\nwidth = 8\nheight = 6\nspp = 1\n{outputs}")
+    };
+    let long = "x".repeat(300);
+    let cases = [
+        (
+            "[[output]]\nkind = \"exr\"\npath = \"f.exr/\"\n".to_string(),
+            "names a folder, not a file",
+        ),
+        (
+            "[[output]]\nkind = \"exr\"\npath = \"f\\u0000.exr\"\n".to_string(),
+            "NUL character",
+        ),
+        (
+            format!("[[output]]\nkind = \"exr\"\npath = \"{long}.exr\"\n"),
+            "is 304 bytes long; file systems allow 255",
+        ),
+        (
+            "[[output]]\nkind = \"exr\"\npath = \"a.exr\"\n[[output]]\nkind = \"exr\"\npath = \"a.exr/b.exr\"\n".to_string(),
+            "writes into the folder a.exr, which [[output]] number 1 writes as a file",
+        ),
+        (
+            "[[output]]\nkind = \"anaglyph\"\npath = \"a.png\"\nvideo = \"v.mp4/\"\n".to_string(),
+            "names a folder",
+        ),
+    ];
+    for (k, (outputs, expected)) in cases.iter().enumerate() {
+        let p = c.file(&format!("p{k}.toml"), with(outputs));
+        c.fails(&p, &[&format!("p{k}.toml:"), expected]);
+    }
+}
+
+#[test]
+fn compare_refuses_a_difference_image_over_an_input() {
+    let c = Case::new("compare-diff-over-input");
+    let a = c.file("a.png", b"");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([10, 20, 30]))
+        .save(&a)
+        .unwrap();
+    let b = c.dir.join("b.png");
+    std::fs::copy(&a, &b).unwrap();
+    let before = std::fs::read(&a).unwrap();
+    for diff in [&a, &c.dir.join("./b.png")] {
+        let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .arg("compare")
+            .args([&a, &b])
+            .arg("--diff")
+            .arg(diff)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains("--diff would overwrite"), "{stderr}");
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), before);
+    assert_eq!(std::fs::read(&b).unwrap(), before);
+}

@@ -100,8 +100,62 @@ pub(super) fn check_collisions(
     p: &Pipeline,
     templates: &[PathTemplate],
 ) -> std::result::Result<(), Invalid<'static>> {
+    for (i, o) in p.outputs.iter().enumerate() {
+        let named = std::iter::once(("path", o.path())).chain(o.video().map(|v| ("video", v)));
+        for (key, raw) in named {
+            if let Some(why) = unwritable(raw) {
+                return Err(invalid(
+                    &[Key::Name("output"), Key::Index(i), Key::Name(key)],
+                    why,
+                ));
+            }
+        }
+    }
+    let all = written(p, templates, p.frames.start, p.frames.end);
     let mut seen: HashMap<String, (usize, &'static str)> = HashMap::new();
-    for w in written(p, templates, p.frames.start, p.frames.end) {
+    for w in &all {
+        seen.entry(w.path.clone()).or_insert((w.output, w.key));
+    }
+    for w in &all {
+        let key = [Key::Name("output"), Key::Index(w.output), Key::Name(w.key)];
+        if let Some(part) = w.path.split('/').find(|c| c.len() > NAME_MAX) {
+            return Err(invalid(
+                &key,
+                format!(
+                    "the name '{}...' is {} bytes long; file systems allow {NAME_MAX}",
+                    &part[..part.floor_char_boundary(40)],
+                    part.len()
+                ),
+            ));
+        }
+        // A folder of this file that another output writes as a file.
+        let mut folder = String::new();
+        for part in w
+            .path
+            .split('/')
+            .collect::<Vec<_>>()
+            .split_last()
+            .map_or(&[][..], |l| l.1)
+        {
+            if !folder.is_empty() {
+                folder.push('/');
+            }
+            folder.push_str(part);
+            if let Some(&(other, _)) = seen.get(&folder) {
+                return Err(invalid(
+                    &key,
+                    format!(
+                        "[[output]] number {} writes into the folder {folder}, which [[output]] \
+                         number {} writes as a file",
+                        w.output + 1,
+                        other + 1
+                    ),
+                ));
+            }
+        }
+    }
+    let mut seen: HashMap<String, (usize, &'static str)> = HashMap::new();
+    for w in all {
         let key = [Key::Name("output"), Key::Index(w.output), Key::Name(w.key)];
         if w.path.split('/').next() == Some(SEQUENCE_FRAMES) {
             return Err(invalid(
@@ -136,6 +190,21 @@ pub(super) fn check_collisions(
     Ok(())
 }
 
+/// The longest file or folder name Linux file systems take, in bytes (`NAME_MAX` of
+/// `<linux/limits.h>`; ext4, XFS and tmpfs alike).
+const NAME_MAX: usize = 255;
+
+/// Why an output path as written can never be a file's name, if it cannot.
+fn unwritable(raw: &str) -> Option<String> {
+    if raw.ends_with('/') || raw.ends_with("/.") || raw.ends_with("/..") {
+        return Some(format!("'{raw}' names a folder, not a file"));
+    }
+    if raw.contains('\0') {
+        return Some("the path holds a NUL character, which no file name can".into());
+    }
+    None
+}
+
 /// A path made absolute, with the links of its folder resolved where that folder exists.
 fn resolved(path: &Path) -> PathBuf {
     let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
@@ -158,17 +227,21 @@ fn resolved(path: &Path) -> PathBuf {
 }
 
 /// Refuses a run whose outputs (for `start..=end`, under `out_dir`) would overwrite its
-/// pipeline or scene file.
+/// pipeline, its scene file or a buffer or image file of the scene.
 pub(super) fn check_inputs_untouched(
     p: &LoadedPipeline,
     out_dir: &Path,
     start: u32,
     end: u32,
 ) -> Result<()> {
-    let inputs = [&p.file, &p.scene_path].map(|f| std::fs::canonicalize(f).ok());
+    // The pipeline, the scene file and every buffer and image file the scene names.
+    let inputs: Vec<PathBuf> = std::iter::once(&p.file)
+        .chain(&p.scene.files)
+        .filter_map(|f| std::fs::canonicalize(f).ok())
+        .collect();
     for w in written(&p.spec, &p.templates, start, end) {
         let target = resolved(&out_dir.join(&w.path));
-        if inputs.iter().flatten().any(|i| *i == target) {
+        if inputs.contains(&target) {
             return Err(Error::input(
                 &p.file,
                 format!(
