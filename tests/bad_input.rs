@@ -879,3 +879,130 @@ fn compare_refuses_a_difference_image_over_an_input() {
     assert_eq!(std::fs::read(&a).unwrap(), before);
     assert_eq!(std::fs::read(&b).unwrap(), before);
 }
+
+/// A one-triangle glTF whose buffer is `positions` then `extra` bytes (base64 inline), with
+/// `edit` adding what uses them.
+fn triangle_with_bytes(extra: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> String {
+    let mut bytes: Vec<u8> = GOOD_TRIANGLE
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    bytes.extend_from_slice(extra);
+    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let len = bytes.len();
+    triangle_gltf(GOOD_TRIANGLE, |g| {
+        g["buffers"][0] = json!({
+            "byteLength": len,
+            "uri": format!("data:application/octet-stream;base64,{data}")
+        });
+        edit(g);
+    })
+}
+
+/// The triangle skinned by one joint: JOINTS_0 (unsigned bytes) at byte 36, WEIGHTS_0 at 48.
+fn skinned_triangle(joints: [[u8; 4]; 3], weights: [[f32; 4]; 3]) -> String {
+    let mut extra: Vec<u8> = joints.iter().flatten().copied().collect();
+    extra.extend(weights.iter().flatten().flat_map(|f| f.to_le_bytes()));
+    triangle_with_bytes(&extra, |g| {
+        g["scenes"][0]["nodes"] = json!([0, 1, 2]);
+        g["nodes"][0]["skin"] = json!(0);
+        g["nodes"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({"name": "joint"}));
+        g["skins"] = json!([{"joints": [2]}]);
+        g["meshes"][0]["primitives"][0]["attributes"]["JOINTS_0"] = json!(1);
+        g["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"] = json!(2);
+        let acc = g["accessors"].as_array_mut().unwrap();
+        acc.push(json!({"bufferView": 1, "componentType": 5121, "count": 3, "type": "VEC4"}));
+        acc.push(json!({"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4"}));
+        let views = g["bufferViews"].as_array_mut().unwrap();
+        views.push(json!({"buffer": 0, "byteOffset": 36, "byteLength": 12}));
+        views.push(json!({"buffer": 0, "byteOffset": 48, "byteLength": 48}));
+    })
+}
+
+#[test]
+fn skins_and_sparse_accessors_that_would_lose_vertices() {
+    let c = Case::new("skins-sparse");
+    let one = [[1.0, 0.0, 0.0, 0.0]; 3];
+    // The skinned triangle itself renders.
+    c.file("good.gltf", skinned_triangle([[0; 4]; 3], one));
+    let p = c.file("good.toml", pipeline("good.gltf", ""));
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["check"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A vertex weighing a joint the skin does not have.
+    c.file(
+        "joint.gltf",
+        skinned_triangle([[0; 4], [3, 0, 0, 0], [0; 4]], one),
+    );
+    let p = c.file("joint.toml", pipeline("joint.gltf", ""));
+    c.fails(
+        &p,
+        &[
+            "meshes[0].primitives[0].attributes.JOINTS_0",
+            "vertex 1 weighs joint 3, but nodes[0] is skinned by skins[0], which has 1 joints",
+        ],
+    );
+    // NaN and negative weights.
+    for (name, w) in [("nan", f32::NAN), ("negative", -0.5)] {
+        let weights = [
+            [1.0, 0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0, 0.0],
+            [w, 0.0, 0.0, 0.0],
+        ];
+        c.file(
+            &format!("{name}.gltf"),
+            skinned_triangle([[0; 4]; 3], weights),
+        );
+        let p = c.file(
+            &format!("{name}.toml"),
+            pipeline(&format!("{name}.gltf"), ""),
+        );
+        c.fails(
+            &p,
+            &[
+                "attributes.WEIGHTS_0",
+                "vertex 2 has weights",
+                "finite and non-negative",
+            ],
+        );
+    }
+    // Sparse POSITION: one index (an unsigned byte at 36) and its value (at 40).
+    let sparse = |index: u8| {
+        let mut extra = vec![index, 0, 0, 0];
+        extra.extend([0.0f32, 0.5, 0.0].iter().flat_map(|f| f.to_le_bytes()));
+        triangle_with_bytes(&extra, |g| {
+            g["accessors"][0]["sparse"] = json!({
+                "count": 1,
+                "indices": {"bufferView": 1, "componentType": 5121},
+                "values": {"bufferView": 2}
+            });
+            let views = g["bufferViews"].as_array_mut().unwrap();
+            views.push(json!({"buffer": 0, "byteOffset": 36, "byteLength": 1}));
+            views.push(json!({"buffer": 0, "byteOffset": 40, "byteLength": 12}));
+        })
+    };
+    c.file("sparse-ok.gltf", sparse(2));
+    let p = c.file("sparse-ok.toml", pipeline("sparse-ok.gltf", ""));
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["check"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    c.file("sparse.gltf", sparse(7));
+    let p = c.file("sparse.toml", pipeline("sparse.gltf", ""));
+    c.fails(
+        &p,
+        &[
+            "attributes.POSITION.sparse.indices",
+            "index 7 at position 0 is out of range: the accessor has 3 elements",
+        ],
+    );
+}

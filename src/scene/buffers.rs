@@ -187,6 +187,50 @@ fn check_range(
     }
 }
 
+/// A sparse accessor's indices (in range already) name elements of the accessor and strictly
+/// increase (glTF 2.0 section 3.6.2.3).
+fn check_sparse_indices(
+    scene_file: &Path,
+    buffers: &[Vec<u8>],
+    accessor: &gltf::Accessor,
+    object: &str,
+) -> Result<()> {
+    let Some(sparse) = accessor.sparse() else {
+        return Ok(());
+    };
+    let indices = sparse.indices();
+    let size = indices.index_type().size();
+    let bytes = &view_bytes(scene_file, buffers, &indices.view())?[indices.offset()..];
+    let mut previous: Option<u64> = None;
+    for (k, b) in bytes.chunks_exact(size).take(sparse.count()).enumerate() {
+        let i = b
+            .iter()
+            .rev()
+            .fold(0u64, |v, &byte| (v << 8) | u64::from(byte));
+        let fault = if i >= accessor.count() as u64 {
+            Some(format!(
+                "index {i} at position {k} is out of range: the accessor has {} elements",
+                accessor.count()
+            ))
+        } else if previous.is_some_and(|p| i <= p) {
+            Some(format!(
+                "index {i} at position {k} does not increase (indices must strictly increase)"
+            ))
+        } else {
+            None
+        };
+        if let Some(message) = fault {
+            return Err(Error::scene(
+                scene_file,
+                format!("{object}.sparse.indices"),
+                message,
+            ));
+        }
+        previous = Some(i);
+    }
+    Ok(())
+}
+
 /// Every byte an accessor (dense or sparse) can read lies inside its buffers.
 pub fn check_accessor(
     scene_file: &Path,
@@ -219,6 +263,7 @@ pub fn check_accessor(
             sparse.count(),
             indices.index_type().size(),
         )?;
+        check_sparse_indices(scene_file, buffers, accessor, object)?;
         let values = sparse.values();
         check_range(
             scene_file,

@@ -208,6 +208,17 @@ fn load_primitive(
             weights.len(),
             n,
         )?;
+        if let Some((v, w)) = weights
+            .iter()
+            .enumerate()
+            .find(|(_, w)| w.iter().any(|x| !(x.is_finite() && *x >= 0.0)))
+        {
+            return Err(Error::scene(
+                file,
+                format!("{object}.attributes.WEIGHTS_{set}"),
+                format!("vertex {v} has weights {w:?}: weights must be finite and non-negative"),
+            ));
+        }
         skin_sets.push((joints, weights));
     }
 

@@ -134,6 +134,41 @@ pub struct Scene {
     pub warnings: Vec<String>,
 }
 
+/// Every joint a skinned mesh's vertices weigh (JOINTS_n with a non-zero weight) is one of the
+/// skin's joints: an index past them would leave the vertex unplaced.
+fn check_skinned_joints(scene: &Scene) -> Result<()> {
+    for (n, node) in scene.nodes.iter().enumerate() {
+        let (Some(mesh), Some(skin)) = (node.mesh, node.skin) else {
+            continue;
+        };
+        let count = scene.skins[skin].joints.len();
+        for (p, prim) in scene.meshes[mesh].primitives.iter().enumerate() {
+            for (set, (joints, weights)) in prim.skin_sets.iter().enumerate() {
+                let bad = joints
+                    .iter()
+                    .zip(weights)
+                    .enumerate()
+                    .find_map(|(v, (j, w))| {
+                        (0..4)
+                            .find(|&k| w[k] != 0.0 && j[k] as usize >= count)
+                            .map(|k| (v, j[k]))
+                    });
+                if let Some((v, joint)) = bad {
+                    return Err(Error::scene(
+                        &scene.source,
+                        format!("meshes[{mesh}].primitives[{p}].attributes.JOINTS_{set}"),
+                        format!(
+                            "vertex {v} weighs joint {joint}, but nodes[{n}] is skinned by \
+                             skins[{skin}], which has {count} joints"
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The scene file and the files its buffer and image URIs name (`data:` URIs are inside it).
 fn scene_files(path: &Path, document: &gltf::Document) -> Result<Vec<PathBuf>> {
     let buffers = document.buffers().filter_map(|b| match b.source() {
@@ -245,7 +280,7 @@ impl Scene {
                 "yfov must be in (0, pi) and znear > 0",
             ));
         }
-        Ok(Scene {
+        let scene = Scene {
             source: path.to_path_buf(),
             files: scene_files(path, document)?,
             nodes,
@@ -264,7 +299,9 @@ impl Scene {
                 .map(|sk| load_skin(path, &buffers, &sk, nodes_len))
                 .collect::<Result<_>>()?,
             warnings,
-        })
+        };
+        check_skinned_joints(&scene)?;
+        Ok(scene)
     }
 
     /// The scene at time `t` (seconds) under `animations` (none: the rest pose).
