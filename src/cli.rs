@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use stereotrace::accel::SplitMethod;
 use stereotrace::bench::{accel, sweep};
 use stereotrace::compare;
-use stereotrace::pipeline::{ShardArg, parse_frame_range, parse_shard};
+use stereotrace::pipeline::{
+    MemoryLimit, ShardArg, parse_frame_range, parse_memory_limit, parse_shard,
+};
 
 #[derive(Parser)]
 #[command(
@@ -62,6 +64,10 @@ pub enum Command {
         /// over the whole range, the sequence outputs are made at the end.
         #[arg(long)]
         resume: bool,
+        /// Refuse before allocating when the render would need more memory than SIZE (512M,
+        /// 16G, or none); default: three quarters of the machine's memory.
+        #[arg(long, value_name = "SIZE", value_parser = parse_memory_limit)]
+        max_memory: Option<MemoryLimit>,
     },
     /// Check that every frame of a farm's shards is finished and current, merge their frame
     /// logs, and write the outputs that need the whole sequence (videos, pseudo-stereo frames,
@@ -83,6 +89,10 @@ pub enum Command {
     Check {
         /// Pipeline file (TOML).
         pipeline: PathBuf,
+        /// Refuse before allocating when the render would need more memory than SIZE (512M,
+        /// 16G, or none); default: three quarters of the machine's memory.
+        #[arg(long, value_name = "SIZE", value_parser = parse_memory_limit)]
+        max_memory: Option<MemoryLimit>,
     },
     /// Write a commented pipeline for a scene (its cameras, animations and frame range filled
     /// in, every output kind present): `stereotrace new scene.glb -o my.toml`.
@@ -130,6 +140,10 @@ pub enum Command {
         /// Machine-readable output.
         #[arg(long)]
         json: bool,
+        /// Refuse before allocating when the kd-tree of --accel would need more memory than SIZE (512M,
+        /// 16G, or none); default: three quarters of the machine's memory.
+        #[arg(long, value_name = "SIZE", value_parser = parse_memory_limit)]
+        max_memory: Option<MemoryLimit>,
     },
 }
 

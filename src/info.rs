@@ -2,6 +2,8 @@
 
 use crate::accel::TreeStats;
 use crate::accel::{BuildParams, KdTree, SplitMethod};
+use crate::error::{Error, Result};
+use crate::pipeline::{BYTES_PER_TRIANGLE, Bytes};
 use crate::scene::Scene;
 use crate::scene::animation::AnimationSummary;
 use crate::scene::light::LightKind;
@@ -33,29 +35,50 @@ pub struct SceneInfo {
     pub accel: Option<TreeStats>,
 }
 
-pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
-    let posed = pose::pose(scene, &[]);
+/// What `scene` holds; with `accel`, the kd-tree built over its rest pose, refused (bad input)
+/// when its triangles would need more than `memory_limit`.
+pub fn scene_info(
+    scene: &Scene,
+    accel: Option<SplitMethod>,
+    memory_limit: Option<u64>,
+) -> Result<SceneInfo> {
+    let triangles = scene.placed_triangle_count();
     let count = |f: fn(&LightKind) -> bool| scene.lights.iter().filter(|l| f(&l.kind)).count();
-    let accel = accel.map(|m| {
-        KdTree::build(posed.geometry.triangle_list(), BuildParams::with_method(m)).stats()
-    });
-    SceneInfo {
+    let accel = match accel {
+        Some(m) => {
+            let need = (triangles as u64).saturating_mul(BYTES_PER_TRIANGLE);
+            if let Some(limit) = memory_limit.filter(|&l| need > l) {
+                return Err(Error::input(
+                    &scene.source,
+                    format!(
+                        "building the kd-tree of {triangles} triangles (after instancing) would need about {}, over the limit of {}; raise it with --max-memory",
+                        Bytes(need),
+                        Bytes(limit)
+                    ),
+                ));
+            }
+            let posed = pose::pose(scene, &[]);
+            Some(KdTree::build(posed.geometry.triangle_list(), BuildParams::with_method(m)).stats())
+        }
+        None => None,
+    };
+    Ok(SceneInfo {
         file: scene.source.display().to_string(),
         nodes: scene.nodes.len(),
         meshes: scene.meshes.len(),
         primitives: scene.meshes.iter().map(|m| m.primitives.len()).sum(),
-        triangles: posed.geometry.triangles.len(),
+        triangles,
         materials: scene.materials.len() - 1,
         textures_decoded: scene.textures.iter().filter(|t| t.is_some()).count(),
         point_lights: count(|k| matches!(k, LightKind::Point)),
         spot_lights: count(|k| matches!(k, LightKind::Spot { .. })),
         directional_lights: count(|k| matches!(k, LightKind::Directional)),
-        cameras: posed
-            .cameras
-            .iter()
-            .map(|c| {
-                scene.camera_name(c).map_or_else(
-                    || format!("{} (unnamed, on node {})", c.camera, c.node),
+        cameras: scene
+            .placed_cameras()
+            .into_iter()
+            .map(|(node, camera)| {
+                scene.camera_label(node, camera).map_or_else(
+                    || format!("{camera} (unnamed, on node {node})"),
                     str::to_owned,
                 )
             })
@@ -70,7 +93,7 @@ pub fn scene_info(scene: &Scene, accel: Option<SplitMethod>) -> SceneInfo {
         animations: scene.animations.iter().map(|a| a.summary()).collect(),
         warnings: scene.warnings.clone(),
         accel,
-    }
+    })
 }
 
 impl fmt::Display for SceneInfo {

@@ -5,7 +5,9 @@ use clap::Parser;
 use std::io::IsTerminal;
 use std::process::ExitCode;
 use stereotrace::bench::{accel, memory, sweep};
-use stereotrace::pipeline::{LoadedPipeline, RunOptions, assemble};
+use stereotrace::pipeline::{
+    Bytes, LoadedPipeline, MemoryEstimate, RunOptions, assemble, memory_limit,
+};
 use stereotrace::{Error, Result, compare, info, thread_pool};
 
 mod cli;
@@ -80,8 +82,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
             quiet,
             shard,
             resume,
+            max_memory,
         } => {
             let p = LoadedPipeline::load(&pipeline)?;
+            MemoryEstimate::of(&p).check(&p.file, memory_limit(max_memory))?;
             // Warnings say what the render will not do as asked: --quiet keeps them.
             warn_all(&p.warnings);
             let opts = RunOptions {
@@ -116,10 +120,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 emit(format_args!("{text}"), false);
             }
         }
-        Command::Check { pipeline } => {
+        Command::Check {
+            pipeline,
+            max_memory,
+        } => {
             let p = LoadedPipeline::load(&pipeline)?;
             warn_all(&p.warnings);
-            out!("{p}");
+            let estimate = MemoryEstimate::of(&p);
+            estimate.check(&p.file, memory_limit(max_memory))?;
+            out!("{p}; about {} of memory", Bytes(estimate.total()));
         }
         Command::Compare {
             a,
@@ -181,9 +190,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
             accel,
             split,
             json,
+            max_memory,
         } => {
             let s = stereotrace::scene::Scene::load(&scene)?;
-            let report = info::scene_info(&s, accel.then_some(split));
+            let report = info::scene_info(&s, accel.then_some(split), memory_limit(max_memory))?;
             if json {
                 out!(
                     "{}",

@@ -33,7 +33,7 @@ fn whitted_clip_matches_its_stored_frames() {
     if bless {
         println!(
             "regenerated {} files under {}",
-            summary.files.len(),
+            summary.files,
             golden.display()
         );
         return;

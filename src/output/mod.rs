@@ -26,7 +26,7 @@ pub use planes::Planes;
 pub use png::{read_rgb8, to_srgb8, write_png, write_rgb8};
 pub use pseudo::{Channels, PseudoStereo};
 pub use read::read_planes;
-pub use table::{csv_line, read_csv, write_csv};
+pub use table::{CsvStream, csv_line, read_csv, write_csv};
 pub use video::{VideoEncoder, check_path as check_video_path, ffmpeg_available};
 pub use wobble::{Mode as WobbleMode, schedule as wobble_schedule, write_gif};
 
@@ -55,11 +55,9 @@ pub fn temporary_tag() -> String {
     format!("{}-{:08x}", std::process::id(), host_id())
 }
 
-/// Writes a file through `fill` into a temporary sibling, then renames it into place.
-pub fn write_atomic(
-    path: &Path,
-    fill: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
+/// The temporary sibling a file is written into before it is renamed into place
+/// (`.NAME.tmp-PID-HOST`, which the stale-temporary scan knows), its folder created.
+pub fn temporary_beside(path: &Path) -> Result<std::path::PathBuf> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -69,7 +67,15 @@ pub fn write_atomic(
         .file_name()
         .map(|n| n.to_string_lossy())
         .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp-{}", temporary_tag()));
+    Ok(dir.join(format!(".{name}.tmp-{}", temporary_tag())))
+}
+
+/// Writes a file through `fill` into a temporary sibling, then renames it into place.
+pub fn write_atomic(
+    path: &Path,
+    fill: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    let tmp = temporary_beside(path)?;
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
         let mut w = BufWriter::new(file);

@@ -2,9 +2,11 @@
 //! a field holding a comma, a quote or a line break is quoted), so that any value a user can
 //! sweep or name survives a round trip. Files are written atomically.
 
-use super::write_atomic;
+use super::{temporary_beside, write_atomic};
 use crate::error::{Error, Result};
-use std::path::Path;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
 
 /// Writes a header and rows as a CSV file.
 pub fn write_csv<R: AsRef<[String]>>(path: &Path, header: &[&str], rows: &[R]) -> Result<()> {
@@ -16,6 +18,72 @@ pub fn write_csv<R: AsRef<[String]>>(path: &Path, header: &[&str], rows: &[R]) -
         }
         out.flush()
     })
+}
+
+/// A CSV file written row by row while a run goes on, so that memory stays flat however many
+/// rows a run makes. Rows go into a temporary sibling that `finish` renames into place; dropped
+/// unfinished (an error), the temporary is removed, so no half-written table is ever left.
+pub struct CsvStream {
+    path: PathBuf,
+    tmp: PathBuf,
+    out: Option<csv::Writer<BufWriter<File>>>,
+}
+
+impl CsvStream {
+    pub fn create(path: &Path, header: &[&str]) -> Result<CsvStream> {
+        let tmp = temporary_beside(path)?;
+        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let mut stream = CsvStream {
+            path: path.to_path_buf(),
+            tmp,
+            out: Some(csv::Writer::from_writer(BufWriter::new(file))),
+        };
+        stream.write(|out| out.write_record(header))?;
+        Ok(stream)
+    }
+
+    fn write(
+        &mut self,
+        f: impl FnOnce(&mut csv::Writer<BufWriter<File>>) -> csv::Result<()>,
+    ) -> Result<()> {
+        let out = self
+            .out
+            .as_mut()
+            .expect("a CsvStream is written only before finish");
+        f(out)
+            .and_then(|()| out.flush().map_err(csv::Error::from))
+            .map_err(|e| Error::io(&self.path, std::io::Error::other(e)))
+    }
+
+    /// Appends rows and hands them to the operating system (a crash of this process keeps them).
+    pub fn append<R: AsRef<[String]>>(&mut self, rows: &[R]) -> Result<()> {
+        self.write(|out| rows.iter().try_for_each(|r| out.write_record(r.as_ref())))
+    }
+
+    /// Syncs the rows to disk and renames the table into place.
+    pub fn finish(mut self) -> Result<()> {
+        let out = self.out.take().expect("a CsvStream is finished once");
+        let result = out
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .and_then(|mut w| {
+                w.flush()?;
+                w.get_ref().sync_all()
+            })
+            .and_then(|()| std::fs::rename(&self.tmp, &self.path));
+        result.map_err(|e| {
+            let _ = std::fs::remove_file(&self.tmp);
+            Error::io(&self.path, e)
+        })
+    }
+}
+
+impl Drop for CsvStream {
+    fn drop(&mut self) {
+        if self.out.take().is_some() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 /// One CSV record as a line of text (without the line break), for tables printed as they grow.

@@ -8,7 +8,7 @@ use super::LoadedPipeline;
 use super::collisions::check_inputs_untouched;
 use super::frame_log::{FRAME_LOG, FRAME_LOG_COLUMNS};
 use super::interrupt::{output_dirs, remove_stale_temporaries};
-use super::manifest::{self, Entry, MANIFEST, Manifest, describe_stale};
+use super::manifest::{self, Entry, MANIFEST, Manifest};
 use super::outputs::{Sequence, Writer};
 use crate::error::{Error, Result};
 use crate::output::{read_rgb8, write_csv};
@@ -51,25 +51,19 @@ pub fn assemble(p: &LoadedPipeline, out_dir: &Path) -> Result<Assembled> {
     remove_stale_temporaries(&output_dirs(p, &writers, out_dir, (start, end)));
     let fingerprint = manifest::fingerprint(p)?;
     let found = Manifest::read(out_dir)?;
-    let mut entries: Vec<&Entry> = Vec::new();
-    let mut stale = Vec::new();
-    for frame in start..=end {
-        match found.current(out_dir, &fingerprint, Some(frame), None) {
-            Ok(e) => entries.push(e),
-            Err(why) => stale.push((why, frame)),
-        }
-    }
-    if !stale.is_empty() {
+    let status = found.check_range(out_dir, &fingerprint, (start, end));
+    if status.not_done() > 0 {
         return Err(Error::Incomplete {
             message: format!(
                 "{}: {} of the {} frames of {start}..{end} are missing or stale, so nothing was assembled:\n  {}",
                 out_dir.display(),
-                stale.len(),
-                end - start + 1,
-                describe_stale(&stale).join("\n  ")
+                status.not_done(),
+                u64::from(end - start) + 1,
+                status.describe().join("\n  ")
             ),
         });
     }
+    let entries: Vec<&Entry> = status.current.values().copied().collect();
     let mut files = Vec::new();
     let already_current = found
         .current(out_dir, &fingerprint, None, Some((start, end)))

@@ -13,6 +13,7 @@ use super::LoadedPipeline;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -158,9 +159,8 @@ impl std::fmt::Display for Stale {
     }
 }
 
-/// Frame numbers as ranges: `3..5, 9, 12..20` (the first 12 ranges, then how many more).
-fn ranges(frames: &[u32]) -> String {
-    const SHOWN: usize = 12;
+/// Sorted frame numbers as runs of consecutive frames.
+fn runs(frames: &[u32]) -> Vec<(u32, u32)> {
     let mut runs: Vec<(u32, u32)> = Vec::new();
     for &f in frames {
         match runs.last_mut() {
@@ -168,6 +168,12 @@ fn ranges(frames: &[u32]) -> String {
             _ => runs.push((f, f)),
         }
     }
+    runs
+}
+
+/// Runs of frames as text: `3..5, 9, 12..20` (the first 12 runs, then how many more).
+fn show_runs(runs: &[(u32, u32)]) -> String {
+    const SHOWN: usize = 12;
     let mut text: Vec<String> = runs
         .iter()
         .take(SHOWN)
@@ -197,7 +203,8 @@ impl Stale {
 }
 
 /// One line per reason: how many frames, which, and (for changed files) the first file.
-pub fn describe_stale(stale: &[(Stale, u32)]) -> Vec<String> {
+/// `never` holds the runs of frames that have no manifest line at all.
+pub fn describe_stale(stale: &[(Stale, u32)], never: &[(u32, u32)]) -> Vec<String> {
     let mut lines = Vec::new();
     for kind in [
         Stale::NeverFinished.kind(),
@@ -205,28 +212,64 @@ pub fn describe_stale(stale: &[(Stale, u32)]) -> Vec<String> {
         Stale::FileChanged(String::new()).kind(),
     ] {
         let mine: Vec<&(Stale, u32)> = stale.iter().filter(|(s, _)| s.kind() == kind).collect();
-        let Some((first, _)) = mine.first() else {
-            continue;
-        };
         let mut frames: Vec<u32> = mine.iter().map(|(_, f)| *f).collect();
         frames.sort_unstable();
-        let example = match first {
-            Stale::FileChanged(why) => format!(" (first: {why})"),
+        let mut found = runs(&frames);
+        if kind == Stale::NeverFinished.kind() {
+            found.extend_from_slice(never);
+            found.sort_unstable();
+        }
+        if found.is_empty() {
+            continue;
+        }
+        let count: u64 = found.iter().map(|&(a, b)| u64::from(b - a) + 1).sum();
+        let example = match mine.first() {
+            Some((Stale::FileChanged(why), _)) => format!(" (first: {why})"),
             _ => String::new(),
         };
         lines.push(format!(
-            "{} frame(s) {kind}: {}{example}",
-            frames.len(),
-            ranges(&frames)
+            "{count} frame(s) {kind}: {}{example}",
+            show_runs(&found)
         ));
     }
     lines
 }
 
+/// What a manifest says of the frames `first..=last`: the current line of each finished frame,
+/// and why each other frame is not done. Frames without any line are kept as runs, so a range
+/// of a billion frames costs what its manifest holds, not what the range spans.
+pub struct RangeStatus<'a> {
+    pub current: BTreeMap<u32, &'a Entry>,
+    pub stale: Vec<(Stale, u32)>,
+    pub never: Vec<(u32, u32)>,
+}
+
+impl RangeStatus<'_> {
+    /// Frames of the range that are not finished and current.
+    pub fn not_done(&self) -> u64 {
+        self.stale.len() as u64
+            + self
+                .never
+                .iter()
+                .map(|&(a, b)| u64::from(b - a) + 1)
+                .sum::<u64>()
+    }
+
+    pub fn describe(&self) -> Vec<String> {
+        describe_stale(&self.stale, &self.never)
+    }
+}
+
+/// What a manifest line records: a frame, or the sequence outputs of a range.
+type Recorded = (Option<u32>, Option<(u32, u32)>);
+
 /// Every line of every manifest in a folder.
 #[derive(Debug, Default)]
 pub struct Manifest {
     entries: Vec<Entry>,
+    /// Lines by what they record (frame, sequence range), oldest first: resuming a long range
+    /// looks each frame up instead of scanning every line for it.
+    index: HashMap<Recorded, Vec<usize>>,
     /// Lines that did not parse (a crash tore them).
     pub torn: usize,
 }
@@ -251,7 +294,13 @@ impl Manifest {
             let text = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
             for line in text.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
                 match serde_json::from_slice::<Entry>(line) {
-                    Ok(e) => m.entries.push(e),
+                    Ok(e) => {
+                        m.index
+                            .entry((e.frame, e.sequence))
+                            .or_default()
+                            .push(m.entries.len());
+                        m.entries.push(e);
+                    }
                     Err(_) => m.torn += 1,
                 }
             }
@@ -269,12 +318,8 @@ impl Manifest {
         sequence: Option<(u32, u32)>,
     ) -> std::result::Result<&Entry, Stale> {
         let mut why = Stale::NeverFinished;
-        let lines = self
-            .entries
-            .iter()
-            .rev()
-            .filter(|e| e.frame == frame && e.sequence == sequence);
-        for e in lines {
+        let lines = self.index.get(&(frame, sequence)).into_iter().flatten();
+        for e in lines.rev().map(|&i| &self.entries[i]) {
             if e.fingerprint != fingerprint {
                 why = why.max(Stale::MadeDifferently);
                 continue;
@@ -285,6 +330,43 @@ impl Manifest {
             }
         }
         Err(why)
+    }
+
+    /// The status of every frame of `first..=last` (see `RangeStatus`).
+    pub fn check_range(
+        &self,
+        out_dir: &Path,
+        fingerprint: &str,
+        (first, last): (u32, u32),
+    ) -> RangeStatus<'_> {
+        let mut status = RangeStatus {
+            current: BTreeMap::new(),
+            stale: Vec::new(),
+            never: Vec::new(),
+        };
+        let recorded: BTreeSet<u32> = self
+            .index
+            .keys()
+            .filter_map(|&(frame, sequence)| frame.filter(|_| sequence.is_none()))
+            .filter(|f| (first..=last).contains(f))
+            .collect();
+        let mut next = Some(first);
+        for &f in &recorded {
+            if let Some(n) = next.filter(|&n| n < f) {
+                status.never.push((n, f - 1));
+            }
+            next = f.checked_add(1).filter(|&n| n <= last);
+            match self.current(out_dir, fingerprint, Some(f), None) {
+                Ok(e) => {
+                    status.current.insert(f, e);
+                }
+                Err(why) => status.stale.push((why, f)),
+            }
+        }
+        if let Some(n) = next {
+            status.never.push((n, last));
+        }
+        status
     }
 }
 
@@ -335,7 +417,7 @@ mod tests {
             (Stale::FileChanged("a.png is missing".into()), 7),
         ];
         assert_eq!(
-            describe_stale(&stale),
+            describe_stale(&stale, &[]),
             [
                 "4 frame(s) never finished: 3..5, 9",
                 "1 frame(s) whose files changed: 7 (first: a.png is missing)"
@@ -390,6 +472,15 @@ mod tests {
             m.current(&dir, "new", Some(2), None),
             Err(Stale::FileChanged(w)) if w.contains("missing")
         ));
+        // Over a range, frames without a line are runs, never a list of every frame.
+        let status = m.check_range(&dir, "new", (0, 1_000_000_000));
+        assert!(status.current.is_empty());
+        assert_eq!(status.never, [(0, 0), (3, 3), (5, 1_000_000_000)]);
+        assert_eq!(status.not_done(), 1_000_000_001);
+        assert_eq!(
+            status.describe()[0],
+            "999999998 frame(s) never finished: 0, 3, 5..1000000000"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

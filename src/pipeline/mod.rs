@@ -13,6 +13,7 @@ mod frame_log;
 mod interrupt;
 mod location;
 mod manifest;
+mod memory;
 mod output_spec;
 mod outputs;
 pub mod run;
@@ -26,6 +27,9 @@ mod validate;
 pub use assemble::{Assembled, assemble};
 pub use frame_log::FRAME_LOG_COLUMNS;
 pub use location::{Key, line_column};
+pub use memory::{
+    BYTES_PER_TRIANGLE, Bytes, MemoryEstimate, MemoryLimit, memory_limit, parse_memory_limit,
+};
 pub use output_spec::{ExrViews, OutputSpec, PairLayout};
 pub use outputs::StereoFrame;
 pub use run::{RunOptions, RunSummary, run};
@@ -214,9 +218,9 @@ impl fmt::Display for LoadedPipeline {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{}: ok ({} triangles, {} output(s), frames {}..{})",
+            "{}: ok ({} triangles after instancing, {} output(s), frames {}..{})",
             self.file.display(),
-            self.scene.triangle_count(),
+            self.scene.placed_triangle_count(),
             self.spec.outputs.len(),
             self.spec.frames.start,
             self.spec.frames.end

@@ -9,15 +9,16 @@ use super::assemble::assemble;
 use super::collisions::check_inputs_untouched;
 use super::frame_log::{self, FRAME_LOG, FRAME_LOG_COLUMNS};
 use super::interrupt::{self, output_dirs};
-use super::manifest::{self, Entry, MANIFEST, Manifest, describe_stale};
+use super::manifest::{self, Entry, MANIFEST, Manifest};
 use super::outputs::{FrameFiles, Sequence, Writer};
 use super::shard::{Shard, ShardArg};
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
-use crate::output::write_csv;
+use crate::output::CsvStream;
 use crate::render::{RayCounts, View, tile_count};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
+use std::collections::BTreeSet;
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -47,7 +48,8 @@ pub struct RunSummary {
     pub trace_seconds: f64,
     /// Time spent turning traced frames into files (all outputs).
     pub output_seconds: f64,
-    pub files: Vec<PathBuf>,
+    /// Files written (counted, not listed: a long range writes millions).
+    pub files: usize,
     /// Temporary files of an earlier run that was killed, removed before this one.
     pub stale_removed: Vec<PathBuf>,
     /// What a farm run skipped and why, and what is left to do.
@@ -76,7 +78,7 @@ impl fmt::Display for RunSummary {
             "rendered {} frame(s), {} eye image(s), {} files; {:.1} M rays ({:.1} M primary, {:.1} M secondary, {:.1} M shadow) in {:.2} s: tracing {:.2} s ({:.2} M rays/s), outputs {:.2} s",
             self.frames,
             self.eyes_traced,
-            self.files.len(),
+            self.files,
             r.total() as f64 * 1e-6,
             r.primary as f64 * 1e-6,
             r.secondary as f64 * 1e-6,
@@ -153,26 +155,22 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
         (first, last),
     ));
     let fingerprint = manifest::fingerprint(p)?;
-    let mut frames: Vec<u32> = (first..=last).collect();
+    let mut frames = FrameSet {
+        first,
+        last,
+        skip: BTreeSet::new(),
+    };
     if opts.resume {
         let found = Manifest::read(&opts.out_dir)?;
-        let total = frames.len();
-        let mut redo = Vec::new();
-        frames.retain(
-            |&f| match found.current(&opts.out_dir, &fingerprint, Some(f), None) {
-                Ok(_) => false,
-                Err(why) => {
-                    redo.push((why, f));
-                    true
-                }
-            },
-        );
+        let status = found.check_range(&opts.out_dir, &fingerprint, (first, last));
+        frames.skip = status.current.keys().copied().collect();
         notes.push(format!(
-            "resume: {} of {total} frame(s) finished and unchanged, skipped; rendering {}",
-            total - frames.len(),
+            "resume: {} of {} frame(s) finished and unchanged, skipped; rendering {}",
+            frames.skip.len(),
+            frames.span(),
             frames.len()
         ));
-        notes.extend(describe_stale(&redo).into_iter().map(|l| format!("  {l}")));
+        notes.extend(status.describe().into_iter().map(|l| format!("  {l}")));
         if found.torn > 0 {
             notes.push(format!(
                 "  ignored {} torn manifest line(s), written by a run that was killed",
@@ -199,7 +197,7 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunSummary> {
             let assembled = pool.install(|| assemble(p, &opts.out_dir))?;
             summary.output_seconds += t.elapsed().as_secs_f64();
             notes.push(assembled.to_string());
-            summary.files.extend(assembled.files);
+            summary.files += assembled.files.len();
         } else {
             notes.push(farm_hint(p, opts, shard, (first, last)));
         }
@@ -227,9 +225,31 @@ fn farm_hint(
     )
 }
 
+/// The frames a run renders: a range less the frames `--resume` found finished. Never a list of
+/// every frame: a range may span a billion frames, and only the skipped ones are stored.
+struct FrameSet {
+    first: u32,
+    last: u32,
+    skip: BTreeSet<u32>,
+}
+
+impl FrameSet {
+    fn span(&self) -> u64 {
+        u64::from(self.last - self.first) + 1
+    }
+
+    fn len(&self) -> u64 {
+        self.span() - self.skip.len() as u64
+    }
+
+    fn iter(&self) -> impl Iterator<Item = u32> + '_ {
+        (self.first..=self.last).filter(|f| !self.skip.contains(f))
+    }
+}
+
 /// Which frames a run renders and how it records them.
 struct Plan {
-    frames: Vec<u32>,
+    frames: FrameSet,
     fingerprint: String,
     /// This run's manifest file.
     manifest: PathBuf,
@@ -259,7 +279,7 @@ fn run_frames(
     // and too unevenly for an estimate of their own.
     let frame_bar = bar(
         &multi,
-        plan.frames.len() as u64,
+        plan.frames.len(),
         "{elapsed_precise} frames [{wide_bar}] {pos}/{len} eta {eta_precise}",
     );
     let tile_bar = bar(
@@ -279,10 +299,17 @@ fn run_frames(
     };
     let mut sequence_files = Vec::new();
     let mut summary = RunSummary::default();
-    let mut log: Vec<Vec<String>> = Vec::new();
+    // A plain run writes the frame log as frames finish (a farm's shards keep their rows in the
+    // manifest for `assemble`), so a long range never holds its rows in memory.
+    let log_path = opts.out_dir.join(FRAME_LOG);
+    let mut log = if plan.streaming {
+        Some(CsvStream::create(&log_path, &FRAME_LOG_COLUMNS)?)
+    } else {
+        None
+    };
     let mut tracer = FrameTracer::new(p).with_stop(interrupt::flag());
-    let mut finished = Vec::new();
-    for &frame in &plan.frames {
+    let mut finished: Option<(u32, u32)> = None;
+    for frame in plan.frames.iter() {
         if interrupt::requested() {
             break;
         }
@@ -330,30 +357,30 @@ fn run_frames(
             .map(|(seq, rgb)| seq.push(frame, rgb))
             .collect::<Result<_>>()?;
         sequence_files.extend(pushed.into_iter().flatten());
-        summary.files.extend(files);
+        summary.files += files.len();
         summary.output_seconds += t.elapsed().as_secs_f64();
-        log.extend(rows);
+        if let Some(log) = log.as_mut() {
+            log.append(&rows)?;
+        }
         summary.frames += 1;
-        finished.push(frame);
+        finished = Some((finished.map_or(frame, |(a, _)| a), frame));
         frame_bar.inc(1);
     }
-    let log_path = opts.out_dir.join(FRAME_LOG);
     if interrupt::requested() {
         // Dropping the sequences stops their encoders and removes their temporary files.
         let whole_range = sequences.iter().any(Sequence::spans_range);
         drop(sequences);
-        if plan.streaming {
-            write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
+        if let Some(log) = log {
+            log.finish()?;
         }
         tile_bar.finish_and_clear();
         frame_bar.finish_and_clear();
-        let done = match (finished.first(), finished.last()) {
-            (Some(a), Some(b)) => format!(
+        let done = match finished {
+            Some((a, b)) => format!(
                 "{} frame(s) from {a} to {b} are finished and kept ({} files)",
-                finished.len(),
-                summary.files.len()
+                summary.frames, summary.files
             ),
-            _ => "no frame was finished".to_string(),
+            None => "no frame was finished".to_string(),
         };
         return Err(Error::Interrupted {
             message: format!(
@@ -373,7 +400,7 @@ fn run_frames(
             sequence_files.extend(seq.finish()?);
         }
         summary.output_seconds += t.elapsed().as_secs_f64();
-        if let (Some(&a), Some(&b)) = (plan.frames.first(), plan.frames.last())
+        if let Some((a, b)) = finished
             && !sequence_files.is_empty()
         {
             manifest::append(
@@ -387,9 +414,11 @@ fn run_frames(
                 },
             )?;
         }
-        summary.files.extend(sequence_files);
-        write_csv(&log_path, &FRAME_LOG_COLUMNS, &log)?;
-        summary.files.push(log_path);
+        summary.files += sequence_files.len();
+        if let Some(log) = log {
+            log.finish()?;
+            summary.files += 1;
+        }
     }
     tile_bar.finish_and_clear();
     frame_bar.finish_and_clear();
@@ -399,7 +428,7 @@ fn run_frames(
 
 /// The union of the views the outputs need for frame `k` of the range, each traced once, in
 /// trace order (left, right, centre, then intermediate wobble views left to right).
-fn views_needed(p: &LoadedPipeline, rig: &[View], k: usize) -> Vec<View> {
+pub(super) fn views_needed(p: &LoadedPipeline, rig: &[View], k: usize) -> Vec<View> {
     let mut views: Vec<View> = Vec::new();
     for o in &p.spec.outputs {
         for v in o.views(rig, k) {

@@ -192,10 +192,23 @@ impl Scene {
     /// The name `[scene] camera` can choose a placed camera by: its node's name, else its
     /// camera's name.
     pub fn camera_name(&self, camera: &pose::PosedCamera) -> Option<&str> {
-        self.nodes[camera.node]
+        self.camera_label(camera.node, camera.camera)
+    }
+
+    /// `camera_name` of camera `camera` placed on node `node`.
+    pub fn camera_label(&self, node: usize, camera: usize) -> Option<&str> {
+        self.nodes[node]
             .name
             .as_deref()
-            .or(self.cameras[camera.camera].name.as_deref())
+            .or(self.cameras[camera].name.as_deref())
+    }
+
+    /// Cameras as the scene places them, `(node, camera)` in traversal order, without posing.
+    pub fn placed_cameras(&self) -> Vec<(usize, usize)> {
+        self.traversal()
+            .into_iter()
+            .filter_map(|n| self.nodes[n].camera.map(|c| (n, c)))
+            .collect()
     }
 
     /// Loads a `.gltf` or `.glb` file and everything it references.
@@ -316,6 +329,16 @@ impl Scene {
 
     pub fn triangle_count(&self) -> usize {
         self.meshes.iter().map(Mesh::triangle_count).sum()
+    }
+
+    /// Triangles of the posed scene, counted without posing it: a mesh counts once per node
+    /// that places it (a small file can place one big mesh thousands of times).
+    pub fn placed_triangle_count(&self) -> usize {
+        self.traversal()
+            .into_iter()
+            .filter_map(|n| self.nodes[n].mesh)
+            .map(|m| self.meshes[m].triangle_count())
+            .sum()
     }
 
     /// Node indices in depth-first order from the roots (each node once).
