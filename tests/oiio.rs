@@ -291,3 +291,63 @@ fn a_view_missing_on_one_side_fails() {
         .unwrap();
     assert_eq!(one.status.code(), Some(0));
 }
+
+/// A multi-part stereo EXR whose parts cover different data windows (each eye's RGBA part and a
+/// depth part with windows of their own, as in OpenEXR's sample set) used to panic `compare`
+/// with an index out of bounds. Each part is now placed in the display window: the file equals
+/// itself, and a change in one part is found in its view at its display position.
+#[test]
+fn parts_with_their_own_data_windows_compare_over_the_display_window() {
+    let Some((_, python)) = oiio() else {
+        return;
+    };
+    let dir = scratch("compare-windows");
+    let script = common::data().join("exr").join("multipart_windows.py");
+    let make = |name: &str, bump: &str| {
+        let path = dir.join(name);
+        let ok = Command::new(&python)
+            .arg(&script)
+            .arg(&path)
+            .arg(bump)
+            .status()
+            .unwrap();
+        assert!(ok.success(), "{} could not write {name}", script.display());
+        path
+    };
+    let (a, b) = (make("a.exr", "0"), make("b.exr", "0.5"));
+    let compare = |x: &Path, y: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .args(["compare", "--json"])
+            .arg(x)
+            .arg(y)
+            .output()
+            .unwrap()
+    };
+    let same = compare(&a, &a);
+    assert_eq!(
+        same.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&same.stderr)
+    );
+    let differ = compare(&a, &b);
+    assert_eq!(differ.status.code(), Some(2));
+    let v: serde_json::Value = serde_json::from_slice(&differ.stdout).unwrap();
+    let view = |name: &str| {
+        v["views"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e[0] == name)
+            .map(|e| e[1].clone())
+            .unwrap_or_else(|| panic!("no view {name} in {v}"))
+    };
+    let (left, right) = (view("left"), view("right"));
+    assert_eq!(
+        (left["width"].clone(), left["height"].clone()),
+        (8.into(), 6.into())
+    );
+    assert_eq!(left["max_error"], 0.0);
+    assert!((right["max_error"].as_f64().unwrap() - 0.5).abs() < 1e-6);
+    assert_eq!(right["max_at"], serde_json::json!([3, 3, 0]));
+}

@@ -122,9 +122,20 @@ pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| Error::input(path, format!("cannot read EXR: {e}")))?;
+    let display = image.attributes.display_window;
+    let size = (display.size.0, display.size.1);
+    if size.0.saturating_mul(size.1) > MAX_READ_PIXELS {
+        return Err(Error::input(
+            path,
+            format!(
+                "the display window is {}x{} pixels, more than this tool compares ({MAX_READ_PIXELS})",
+                size.0, size.1
+            ),
+        ));
+    }
     let mut views: Vec<(String, Planes)> = Vec::new();
     for layer in &image.layer_data {
-        let size = (layer.size.0, layer.size.1);
+        let data_window = (layer.attributes.layer_position, layer.size);
         let names: Vec<String> = layer
             .attributes
             .multi_view_names
@@ -147,7 +158,12 @@ pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
                 }
                 _ => (part_view.clone(), full.clone()),
             };
-            let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            let values = in_display_window(
+                ch.sample_data.values_as_f32(),
+                data_window,
+                display.position,
+                size,
+            );
             let planes = match views.iter().position(|(n, _)| *n == view) {
                 Some(i) => &mut views[i].1,
                 None => {
@@ -171,6 +187,39 @@ pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
         (p.names, p.data) = chans.into_iter().unzip();
     }
     Ok(views)
+}
+
+/// The most pixels `read_view_planes` places a file's display window in: 16384 x 16384, the
+/// largest film a pipeline may ask for.
+const MAX_READ_PIXELS: usize = 16384 * 16384;
+
+/// One channel of a part, stored over its data window (`origin`, `size`), placed in the display
+/// window (`display_origin`, `display_size`): parts of one file may cover different rectangles
+/// (OpenEXR's multi-part stereo samples give each eye, depth and disparity part its own), and
+/// comparing is done over the display window, as idiff does. Pixels outside the data window
+/// are 0 (OpenEXR's meaning: no data).
+fn in_display_window(
+    values: impl Iterator<Item = f32>,
+    (origin, size): (Vec2<i32>, Vec2<usize>),
+    display_origin: Vec2<i32>,
+    (width, height): (usize, usize),
+) -> Vec<f32> {
+    let mut plane = vec![0.0; width * height];
+    let values: Vec<f32> = values.collect();
+    for y in 0..size.1 {
+        let dy = i64::from(origin.1) + y as i64 - i64::from(display_origin.1);
+        if !(0..height as i64).contains(&dy) {
+            continue;
+        }
+        for x in 0..size.0 {
+            let dx = i64::from(origin.0) + x as i64 - i64::from(display_origin.0);
+            if let (true, Some(&v)) = ((0..width as i64).contains(&dx), values.get(y * size.0 + x))
+            {
+                plane[dy as usize * width + dx as usize] = v;
+            }
+        }
+    }
+    plane
 }
 
 /// Every view of an EXR file as a linear RGB image (each view must have R, G and B).
