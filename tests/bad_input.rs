@@ -656,6 +656,16 @@ fn benchmark_settings_that_measure_nothing() {
 /// Renders a one-frame anaglyph with a video through a stand-in `ffmpeg` running `script`
 /// (after answering `-version`); returns the exit status, stderr and the video files left.
 fn render_with_fake_ffmpeg(name: &str, script: &str) -> (Option<i32>, String, Vec<PathBuf>) {
+    render_with_fake_ffmpeg_at(name, script, (8, 6))
+}
+
+/// `render_with_fake_ffmpeg` at a film size, with the encoder watchdog at 2 s; the render
+/// must end within 20 s.
+fn render_with_fake_ffmpeg_at(
+    name: &str,
+    script: &str,
+    (width, height): (u32, u32),
+) -> (Option<i32>, String, Vec<PathBuf>) {
     use std::os::unix::fs::PermissionsExt;
     let c = Case::new(name);
     let bin = c.dir.join("bin");
@@ -669,6 +679,10 @@ fn render_with_fake_ffmpeg(name: &str, script: &str) -> (Option<i32>, String, Ve
     std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
     c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
     let text = pipeline("s.gltf", "")
+        .replace(
+            "width = 8\nheight = 6",
+            &format!("width = {width}\nheight = {height}"),
+        )
         .replace("kind = \"png\"", "kind = \"anaglyph\"")
         .replace("img_{eye}.png", "a.png\"\nvideo = \"a.mp4");
     let p = c.file("p.toml", text);
@@ -677,13 +691,24 @@ fn render_with_fake_ffmpeg(name: &str, script: &str) -> (Option<i32>, String, Ve
         bin.display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
         .args(["render", "--quiet", "--out"])
         .arg(c.dir.join("out"))
         .arg(&p)
         .env("PATH", path)
-        .output()
+        .env("STEREOTRACE_ENCODER_TIMEOUT", "2")
+        .stderr(std::process::Stdio::piped())
+        .spawn()
         .unwrap();
+    let t0 = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed() > std::time::Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("{name}: the render did not end within 20 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let o = child.wait_with_output().unwrap();
     let videos = walk(&c.dir.join("out"))
         .into_iter()
         .filter(|f| f.to_string_lossy().contains(".mp4"))
@@ -723,6 +748,29 @@ fn a_video_cut_off_by_a_full_disk_is_not_kept() {
     assert_eq!(code, Some(1), "{stderr}");
     assert!(
         stderr.contains("a.mp4") && stderr.contains("broken video"),
+        "{stderr}"
+    );
+    assert!(videos.is_empty(), "{videos:?}");
+}
+
+/// An encoder that stops reading its input, or never exits after it, is stopped by the
+/// watchdog: exit 1 naming the video, no video file or temporary left, well within 20 s.
+#[test]
+fn an_encoder_that_stops_reading_does_not_hang_the_render() {
+    // Never reads and never exits: a frame small enough to sit in the pipe's buffer.
+    let (code, stderr, videos) = render_with_fake_ffmpeg("video-silent", "exec sleep 30\n");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("a.mp4") && stderr.contains("did not exit after its input ended"),
+        "{stderr}"
+    );
+    assert!(videos.is_empty(), "{videos:?}");
+    // A frame larger than the pipe's buffer (256 x 192 x 3 bytes): the write itself blocks.
+    let (code, stderr, videos) =
+        render_with_fake_ffmpeg_at("video-stuck", "exec sleep 30\n", (256, 192));
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("a.mp4") && stderr.contains("stopped reading its input"),
         "{stderr}"
     );
     assert!(videos.is_empty(), "{videos:?}");

@@ -2,10 +2,10 @@
 //! encodes H.264 (`.mp4`, `.mov`, `.mkv`) or VP9 (`.webm`) at the pipeline's frame rate. The file is
 //! written under a temporary name and renamed when ffmpeg succeeds, like every other output.
 
+use super::fed_process::{FedProcess, stall_limit};
 use crate::error::{Error, Result};
-use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 
 /// Whether an `ffmpeg` executable runs.
 pub fn ffmpeg_available() -> bool {
@@ -32,7 +32,7 @@ pub struct VideoEncoder {
     path: PathBuf,
     tmp: PathBuf,
     fps: f32,
-    child: Option<(Child, usize, usize)>,
+    child: Option<(FedProcess, usize, usize)>,
 }
 
 impl VideoEncoder {
@@ -67,7 +67,7 @@ impl VideoEncoder {
             // stereotrace, which then stops ffmpeg itself and removes its temporary file.
             #[cfg(unix)]
             std::os::unix::process::CommandExt::process_group(&mut command, 0);
-            let child = command
+            command
                 .args([
                     "-y",
                     "-loglevel",
@@ -93,45 +93,41 @@ impl VideoEncoder {
                 // No random segment ID or date in Matroska/WebM: the same frames give the same
                 // file, so a farm's assembled video is byte-identical to a single run's.
                 .args(["-fflags", "+bitexact"])
-                .arg(&self.tmp)
-                .stdin(Stdio::piped())
-                .stdout(Stdio::null())
-                .stderr(Stdio::piped())
-                .spawn()
-                .map_err(|e| {
-                    Error::input(
-                        &self.path,
-                        format!("cannot start ffmpeg (is it installed?): {e}"),
-                    )
-                })?;
+                .arg(&self.tmp);
+            let child = FedProcess::spawn(&mut command, stall_limit()).map_err(|e| {
+                Error::input(
+                    &self.path,
+                    format!("cannot start ffmpeg (is it installed?): {e}"),
+                )
+            })?;
             self.child = Some((child, width, height));
         }
         let (child, w, h) = self.child.as_mut().expect("encoder started above");
         if (*w, *h) != (width, height) {
             return Err(Error::input(&self.path, "video frames changed size"));
         }
-        let stdin = child.stdin.as_mut().expect("ffmpeg stdin is piped");
-        stdin.write_all(rgb).map_err(|e| Error::io(&self.path, e))
+        let fed = child.feed(rgb.to_vec());
+        if fed.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        fed.map_err(|e| Error::io(&self.path, e))
     }
 
     /// Closes the stream, waits for ffmpeg and moves the file into place.
     pub fn finish(mut self) -> Result<Option<PathBuf>> {
-        let Some((mut child, _, _)) = self.child.take() else {
+        let Some((child, _, _)) = self.child.take() else {
             return Ok(None);
         };
-        drop(child.stdin.take());
-        let out = child
-            .wait_with_output()
-            .map_err(|e| Error::io(&self.path, e))?;
-        if !out.status.success() {
+        let (status, stderr) = child.finish().map_err(|e| {
+            let _ = std::fs::remove_file(&self.tmp);
+            Error::io(&self.path, e)
+        })?;
+        if !status.success() {
             let _ = std::fs::remove_file(&self.tmp);
             // Writing failed, not the input: status 1.
             return Err(Error::io(
                 &self.path,
-                std::io::Error::other(format!(
-                    "ffmpeg failed: {}",
-                    String::from_utf8_lossy(&out.stderr).trim()
-                )),
+                std::io::Error::other(format!("ffmpeg failed: {stderr}")),
             ));
         }
         // ffmpeg can exit 0 having written a cut-off file (a full disk): the container must be
@@ -158,9 +154,8 @@ impl VideoEncoder {
 impl Drop for VideoEncoder {
     fn drop(&mut self) {
         // An encoder dropped without finish (an error elsewhere) leaves no partial file.
-        if let Some((mut child, _, _)) = self.child.take() {
-            let _ = child.kill();
-            let _ = child.wait();
+        if let Some((child, _, _)) = self.child.take() {
+            drop(child);
             let _ = std::fs::remove_file(&self.tmp);
         }
     }
