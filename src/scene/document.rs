@@ -134,6 +134,12 @@ impl Document<'_> {
             self.index(s.get("inverseBindMatrices"), "accessors", || {
                 format!("{at}.inverseBindMatrices")
             })?;
+            self.require_kind(
+                s.get("inverseBindMatrices"),
+                format!("{at}.inverseBindMatrices"),
+                &["MAT4"],
+                &[FLOAT],
+            )?;
             self.index(s.get("skeleton"), "nodes", || format!("{at}.skeleton"))?;
             for (k, j) in array_of(s.get("joints")).iter().enumerate() {
                 self.index(Some(j), "nodes", || format!("{at}.joints[{k}]"))?;
@@ -191,6 +197,31 @@ impl Document<'_> {
             a["componentType"].as_u64().unwrap_or(0),
             a["type"].as_str().unwrap_or(""),
         )
+    }
+
+    /// The accessor `index` (resolved already; absent: nothing to check) is one of `kinds` with
+    /// one of `components`: the crate's readers assume it and panic on a mismatch.
+    fn require_kind(
+        &self,
+        index: Option<&Value>,
+        object: String,
+        kinds: &[&str],
+        components: &[u64],
+    ) -> Result<()> {
+        let Some(i) = index.and_then(Value::as_u64) else {
+            return Ok(());
+        };
+        let (component, kind) = self.accessor_kind(i);
+        if kinds.contains(&kind) && components.contains(&component) {
+            return Ok(());
+        }
+        Err(self.fail(
+            object,
+            format!(
+                "must be an accessor of {} with componentType {components:?}, not {kind} {component}",
+                kinds.join(" or ")
+            ),
+        ))
     }
 
     /// What an attribute's accessor must be (glTF 2.0, "Meshes": attribute semantics);
@@ -283,6 +314,8 @@ impl Document<'_> {
                         v => self.index(v, "accessors", || at(key))?,
                     }
                 }
+                // Key times are floats (glTF 2.0, "Animations").
+                self.require_kind(sampler.get("input"), at("input"), &["SCALAR"], &[FLOAT])?;
                 if let Some(i) = sampler.get("interpolation")
                     && !i.as_str().is_some_and(|i| INTERPOLATIONS.contains(&i))
                 {
@@ -323,6 +356,22 @@ impl Document<'_> {
                         ),
                     ));
                 }
+                // The sampler's output as the path requires (glTF 2.0, "Animations": the
+                // accessor types of each path); rotations and weights may be normalized integers.
+                const NORMALIZED: [u64; 5] = [FLOAT, 5120, 5121, 5122, 5123];
+                let (kinds, components): (&[&str], &[u64]) =
+                    match path.and_then(Value::as_str).unwrap_or("") {
+                        "rotation" => (&["VEC4"], &NORMALIZED),
+                        "weights" => (&["SCALAR"], &NORMALIZED),
+                        _ => (&["VEC3"], &[FLOAT]),
+                    };
+                let sampler = channel["sampler"].as_u64().unwrap_or(0) as usize;
+                self.require_kind(
+                    samplers[sampler].get("output"),
+                    format!("animations[{a}].samplers[{sampler}].output"),
+                    kinds,
+                    components,
+                )?;
             }
         }
         Ok(())
