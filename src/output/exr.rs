@@ -3,6 +3,7 @@
 //! (`left` first, so it is the default view with plain `R,G,B` channels; the other view as
 //! `right.R` etc.), or one file per view carrying a `view` attribute. Scanline, ZIP, float32 or half.
 
+use super::exr_chunks::with_true_chunk_count;
 use super::image::Image;
 use super::planes::Planes;
 use super::write_atomic;
@@ -114,13 +115,15 @@ fn channel_rank(name: &str) -> (usize, String) {
 /// their channel prefixes, multi-part files by each part's `view` attribute; a file without views
 /// yields one view named by its layer name, or `""`.
 pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
+    let bytes = crate::paths::read_regular(path)?;
+    let bytes = with_true_chunk_count(&bytes).unwrap_or(bytes);
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .all_layers()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(std::io::Cursor::new(bytes))
         .map_err(|e| Error::input(path, format!("cannot read EXR: {e}")))?;
     let display = image.attributes.display_window;
     let size = (display.size.0, display.size.1);
@@ -142,12 +145,12 @@ pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
             .as_ref()
             .map(|v| v.iter().map(|t| t.to_string()).collect())
             .unwrap_or_default();
-        let part_view = layer
-            .attributes
-            .view_name
-            .as_ref()
-            .map(|t| t.to_string())
-            .or_else(|| names.first().cloned())
+        // In a multi-view part the plain channels are the default view's, the first of
+        // `multiView`, whatever `view` says (exrmultiview keeps its last input's `view`).
+        let part_view = names
+            .first()
+            .cloned()
+            .or_else(|| layer.attributes.view_name.as_ref().map(|t| t.to_string()))
             .or_else(|| layer.attributes.layer_name.as_ref().map(|t| t.to_string()))
             .unwrap_or_default();
         for ch in &layer.channel_data.list {

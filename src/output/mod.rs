@@ -7,6 +7,7 @@ pub mod anaglyph;
 mod color;
 mod container;
 pub mod exr;
+mod exr_chunks;
 mod fed_process;
 pub mod image;
 mod layout;
