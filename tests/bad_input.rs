@@ -4,7 +4,7 @@
 mod common;
 
 use base64::Engine;
-use common::scratch;
+use common::{bounded, files_under, scratch};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -74,28 +74,13 @@ impl Case {
         for e in expected_in_message {
             assert!(stderr.contains(e), "expected '{e}' in: {stderr}");
         }
-        let written: Vec<_> = walk(&self.dir.join("out"));
+        let written: Vec<_> = files_under(&self.dir.join("out"));
         assert!(
             written.is_empty(),
             "files written despite the error: {written:?}"
         );
         stderr
     }
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    if let Ok(rd) = std::fs::read_dir(dir) {
-        for e in rd.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                out.extend(walk(&p));
-            } else {
-                out.push(p);
-            }
-        }
-    }
-    out
 }
 
 #[test]
@@ -691,25 +676,15 @@ fn render_with_fake_ffmpeg_at(
         bin.display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    let mut child = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+    let mut render = Command::new(env!("CARGO_BIN_EXE_stereotrace"));
+    render
         .args(["render", "--quiet", "--out"])
         .arg(c.dir.join("out"))
         .arg(&p)
         .env("PATH", path)
-        .env("STEREOTRACE_ENCODER_TIMEOUT", "2")
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed() > std::time::Duration::from_secs(20) {
-            let _ = child.kill();
-            panic!("{name}: the render did not end within 20 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let o = child.wait_with_output().unwrap();
-    let videos = walk(&c.dir.join("out"))
+        .env("STEREOTRACE_ENCODER_TIMEOUT", "2");
+    let o = bounded(render);
+    let videos = files_under(&c.dir.join("out"))
         .into_iter()
         .filter(|f| f.to_string_lossy().contains(".mp4"))
         .collect();
@@ -778,21 +753,9 @@ fn an_encoder_that_stops_reading_does_not_hang_the_render() {
 
 /// Runs stereotrace, failing the test (instead of hanging) past 20 s.
 fn run_bounded(args: &[&std::ffi::OsStr]) -> std::process::Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-        .args(args)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed() > std::time::Duration::from_secs(20) {
-            let _ = child.kill();
-            panic!("{args:?} did not end within 20 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    let mut c = Command::new(env!("CARGO_BIN_EXE_stereotrace"));
+    c.args(args);
+    bounded(c)
 }
 
 #[test]

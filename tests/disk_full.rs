@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::scratch;
+use common::{files_under, scratch};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -63,19 +63,6 @@ fn pipeline(dir: &Path, video: &str) -> PathBuf {
     p
 }
 
-fn files(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            out.extend(files(&p));
-        } else {
-            out.push(p);
-        }
-    }
-    out
-}
-
 /// Runs the render into `out`; checks exit 1, the message and what was left.
 fn render_fails(p: &Path, out: &Path, names: &str) {
     let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
@@ -90,7 +77,7 @@ fn render_fails(p: &Path, out: &Path, names: &str) {
         stderr.contains(names) && stderr.contains("No space left on device"),
         "{stderr}"
     );
-    let left = files(out);
+    let left = files_under(out);
     for f in &left {
         let name = f.file_name().unwrap().to_string_lossy();
         assert!(!name.contains(".tmp-"), "a temporary was left: {f:?}");
@@ -116,7 +103,7 @@ fn a_full_output_disk_fails_the_render_and_leaves_nothing_half_written() {
     };
     render_fails(&p, &out, "out/");
     assert!(
-        files(&out)
+        files_under(&out)
             .iter()
             .any(|f| f.to_string_lossy().ends_with(".png")),
         "the frames before the disk filled are kept"
@@ -136,7 +123,7 @@ fn a_full_disk_under_the_video_alone_fails_the_render_and_keeps_no_video() {
         return;
     };
     render_fails(&p, &out, "vid/a.mp4");
-    let pngs = files(&out)
+    let pngs = files_under(&out)
         .iter()
         .filter(|f| f.to_string_lossy().ends_with(".png"))
         .count();

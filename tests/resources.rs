@@ -6,7 +6,7 @@
 mod common;
 
 use base64::Engine;
-use common::scratch;
+use common::{bounded, scratch};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -14,24 +14,6 @@ use std::time::{Duration, Instant};
 
 fn stereotrace() -> Command {
     Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-}
-
-/// Runs to the end within 20 s (the bound for every hostile case).
-fn bounded(mut c: Command) -> Output {
-    let mut child = c
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed() > Duration::from_secs(20) {
-            let _ = child.kill();
-            panic!("{c:?} did not end within 20 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
 }
 
 /// A glTF placing one `n` x `n` grid mesh (2 (n-1)^2 triangles) in `copies` nodes, each moved
