@@ -934,6 +934,16 @@ fn skinned_triangle(joints: [[u8; 4]; 3], weights: [[f32; 4]; 3]) -> String {
     })
 }
 
+/// `check` accepts the pipeline.
+fn checks_ok(p: &Path) {
+    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .arg("check")
+        .arg(p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 #[test]
 fn skins_and_sparse_accessors_that_would_lose_vertices() {
     let c = Case::new("skins-sparse");
@@ -941,12 +951,7 @@ fn skins_and_sparse_accessors_that_would_lose_vertices() {
     // The skinned triangle itself renders.
     c.file("good.gltf", skinned_triangle([[0; 4]; 3], one));
     let p = c.file("good.toml", pipeline("good.gltf", ""));
-    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-        .args(["check"])
-        .arg(&p)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    checks_ok(&p);
     // A vertex weighing a joint the skin does not have.
     c.file(
         "joint.gltf",
@@ -1001,12 +1006,7 @@ fn skins_and_sparse_accessors_that_would_lose_vertices() {
     };
     c.file("sparse-ok.gltf", sparse(2));
     let p = c.file("sparse-ok.toml", pipeline("sparse-ok.gltf", ""));
-    let o = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-        .args(["check"])
-        .arg(&p)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    checks_ok(&p);
     c.file("sparse.gltf", sparse(7));
     let p = c.file("sparse.toml", pipeline("sparse.gltf", ""));
     c.fails(
