@@ -344,9 +344,8 @@ fn hard_inputs_keep_the_tree_small() {
 
 /// A pile of one triangle placed 3,000 times a millimetre apart: every plane cuts most of the
 /// pile, and perfect splits copied it into every leaf (1,000 copies made 300 MB and took 15 s,
-/// 5,000 took 8 GB). The default build holds at most 64 references per triangle
-/// (`REFERENCE_BUDGET`), still finds the brute-force hits, and builds the same tree at 1 and
-/// 2 threads.
+/// 5,000 took 8 GB). Every build holds at most 64 references per triangle (`REFERENCE_BUDGET`),
+/// still finds the brute-force hits, and builds the same tree at 1 and 2 threads.
 #[test]
 fn a_pile_of_overlapping_copies_stays_within_the_reference_budget() {
     let pile: Vec<[Vec3; 3]> = (0..3000)
@@ -355,35 +354,42 @@ fn a_pile_of_overlapping_copies_stays_within_the_reference_budget() {
             [o, o + Vec3::X, o + Vec3::Y]
         })
         .collect();
-    let build = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| KdTree::build(pile.clone(), BuildParams::default()))
-    };
-    let tree = build(2);
-    let s = tree.stats();
-    eprintln!(
-        "pile: {} nodes, {:.1} refs/tri, depth {}",
-        s.nodes, s.references_per_triangle, s.max_depth
-    );
-    assert!(
-        s.references_per_triangle <= 64.0,
-        "{:.1} refs/tri",
-        s.references_per_triangle
-    );
-    assert!(
-        build(1).shape() == tree.shape(),
-        "trees differ between 1 and 2 threads"
-    );
     let brute = BruteForce {
         triangles: pile.clone(),
     };
     let mut rng = Rng(7);
-    for r in rays_through(&pile, 500, &mut rng) {
-        let want = brute.closest_hit(&r, f32::INFINITY).map(|h| h.t);
-        assert_eq!(tree.closest_hit(&r, f32::INFINITY).map(|h| h.t), want);
-        assert_eq!(tree.any_hit(&r, f32::INFINITY), want.is_some());
+    let rays = rays_through(&pile, 300, &mut rng);
+    for method in METHODS {
+        let build = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| KdTree::build(pile.clone(), BuildParams::with_method(method)))
+        };
+        let tree = build(2);
+        let s = tree.stats();
+        eprintln!(
+            "pile {method:?}: {} nodes, {:.1} refs/tri, depth {}",
+            s.nodes, s.references_per_triangle, s.max_depth
+        );
+        assert!(
+            s.references_per_triangle <= 64.0,
+            "{method:?}: {:.1} refs/tri",
+            s.references_per_triangle
+        );
+        assert!(
+            build(1).shape() == tree.shape(),
+            "{method:?}: trees differ between 1 and 2 threads"
+        );
+        for r in &rays {
+            let want = brute.closest_hit(r, f32::INFINITY).map(|h| h.t);
+            assert_eq!(
+                tree.closest_hit(r, f32::INFINITY).map(|h| h.t),
+                want,
+                "{method:?}"
+            );
+            assert_eq!(tree.any_hit(r, f32::INFINITY), want.is_some(), "{method:?}");
+        }
     }
 }

@@ -23,7 +23,7 @@
 use super::aabb::Aabb;
 use super::bins::{BIN_STORE, Bins, Grid, Ref};
 use super::params::BuildParams;
-use super::split::{PARALLEL_THRESHOLD, Split};
+use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, share};
 use super::tree::{Flat, Node};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -37,15 +37,6 @@ const EXACT_MAX: usize = 12;
 /// Above this many references a node bins and partitions on all threads, in chunks of this size.
 const PARALLEL_NODE: usize = 1 << 16;
 const CHUNK: usize = 1 << 14;
-/// References the whole tree may hold, per triangle. Perfect splits copy a straddling triangle
-/// into both children; on ordinary meshes that gives 3-6 references per triangle (the README's
-/// ladder), but a pile of overlapping triangles (the same sprite placed a thousand times a
-/// millimetre apart) is split again and again and grew to 300 MB for 1,000 triangles and 8 GB
-/// for 5,000. Each node hands its budget to its children in proportion to their references and
-/// becomes a leaf when its split would hold more than its budget, so the tree holds at most
-/// this many references per triangle whatever the input, and the rule is the same on every
-/// thread count. 64 is over ten times what the ladder's meshes use, so they build as before.
-const REFERENCE_BUDGET: f64 = 64.0;
 
 /// Bins for a node of `n` references: one per four references, between 8 and 512. Measured on
 /// the 1M peer mesh, 1 thread: one per four builds 4% faster than one per two (from 16) at the
@@ -503,16 +494,6 @@ impl Ctx<'_> {
             }
         }
     }
-}
-
-/// The children's budgets, in proportion to their references, or `None` when the two children
-/// together would hold more references than the node's budget allows (the node stays a leaf).
-fn share(budget: f64, below: usize, above: usize) -> Option<(f64, f64)> {
-    let total = (below + above) as f64;
-    (total <= budget).then(|| {
-        let per_reference = budget / total;
-        (per_reference * below as f64, per_reference * above as f64)
-    })
 }
 
 /// The exact sweep over sorted events on one axis, starting with `below` references already

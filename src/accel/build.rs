@@ -7,7 +7,8 @@
 use super::aabb::Aabb;
 use super::params::{BuildParams, SplitMethod};
 use super::split::{
-    BuildNode, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler, consider_plane, side_of,
+    BuildNode, Item, PARALLEL_THRESHOLD, REFERENCE_BUDGET, Side, Split, clip_straddler,
+    consider_plane, share, side_of,
 };
 use super::tree::{KdTree, depth_cap, flatten};
 use glam::Vec3;
@@ -61,7 +62,8 @@ impl KdTree {
                 triangles: &triangles,
                 max_depth,
             };
-            builder.build(items, bounds, 0)
+            let budget = REFERENCE_BUDGET * items.len() as f64;
+            builder.build(items, bounds, 0, budget)
         };
         let (nodes, prim_refs) = flatten(root);
         KdTree::assemble(nodes, prim_refs, triangles, bounds, params, start)
@@ -75,7 +77,8 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn build(&self, items: Vec<Item>, node_box: Aabb, depth: u32) -> BuildNode {
+    /// A node and its subtree, holding at most `budget` references (`REFERENCE_BUDGET`).
+    fn build(&self, items: Vec<Item>, node_box: Aabb, depth: u32, budget: f64) -> BuildNode {
         let split = if depth >= self.max_depth || items.len() <= 1 {
             None
         } else {
@@ -91,16 +94,25 @@ impl Builder<'_> {
             return BuildNode::Leaf(items.iter().map(|it| it.prim).collect());
         };
         let (below_box, above_box) = node_box.split(split.axis, split.pos);
+        // Children hold at most twice the node's references: only near the budget is the
+        // node's own list kept, for the leaf it becomes when the split would pass it.
+        let as_leaf: Option<Vec<u32>> =
+            (2.0 * items.len() as f64 > budget).then(|| items.iter().map(|it| it.prim).collect());
         let (below, above) = self.partition(items, &split, &below_box, &above_box);
+        let Some((below_budget, above_budget)) = share(budget, below.len(), above.len()) else {
+            return BuildNode::Leaf(
+                as_leaf.expect("a split past the budget holds over half of it"),
+            );
+        };
         let (lo, hi) = if below.len() + above.len() > PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(below, below_box, depth + 1),
-                || self.build(above, above_box, depth + 1),
+                || self.build(below, below_box, depth + 1, below_budget),
+                || self.build(above, above_box, depth + 1, above_budget),
             )
         } else {
             (
-                self.build(below, below_box, depth + 1),
-                self.build(above, above_box, depth + 1),
+                self.build(below, below_box, depth + 1, below_budget),
+                self.build(above, above_box, depth + 1, above_budget),
             )
         };
         BuildNode::Inner {

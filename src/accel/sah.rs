@@ -11,7 +11,8 @@
 use super::aabb::Aabb;
 use super::params::BuildParams;
 use super::split::{
-    BuildNode, Item, PARALLEL_THRESHOLD, Side, Split, clip_straddler, consider_plane, side_of,
+    BuildNode, Item, PARALLEL_THRESHOLD, REFERENCE_BUDGET, Side, Split, clip_straddler,
+    consider_plane, share, side_of,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -90,7 +91,8 @@ pub(super) fn build(
         params,
         max_depth,
     };
-    ctx.node(events, items.len(), bounds, 0)
+    let budget = REFERENCE_BUDGET * items.len() as f64;
+    ctx.node(events, items.len(), bounds, 0, budget)
 }
 
 struct Ctx<'a> {
@@ -100,33 +102,42 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn node(&self, events: Vec<Event>, n: usize, node_box: Aabb, depth: u32) -> BuildNode {
+    /// A node and its subtree, holding at most `budget` references (`REFERENCE_BUDGET`).
+    fn node(
+        &self,
+        events: Vec<Event>,
+        n: usize,
+        node_box: Aabb,
+        depth: u32,
+        budget: f64,
+    ) -> BuildNode {
         let split = if depth >= self.max_depth || n <= 1 {
             None
         } else {
             self.find_split(&events, n, &node_box)
         };
         let Some(split) = split else {
-            // Each reference has exactly one START or PLANAR event on axis 0.
-            let axis0 = events.partition_point(|e| e.axis == 0);
-            let prims = events[..axis0]
-                .iter()
-                .filter(|e| e.kind != END)
-                .map(|e| e.prim)
-                .collect();
-            return BuildNode::Leaf(prims);
+            return BuildNode::Leaf(leaf_prims(&events));
         };
         let (below_box, above_box) = node_box.split(split.axis, split.pos);
+        // Children hold at most twice the node's references: only near the budget is the
+        // node's own list kept, for the leaf it becomes when the split would pass it.
+        let as_leaf = (2.0 * n as f64 > budget).then(|| leaf_prims(&events));
         let ((eb, nb), (ea, na)) = self.split_events(events, n, &split, &below_box, &above_box);
+        let Some((below_budget, above_budget)) = share(budget, nb, na) else {
+            return BuildNode::Leaf(
+                as_leaf.expect("a split past the budget holds over half of it"),
+            );
+        };
         let (lo, hi) = if nb + na > PARALLEL_THRESHOLD {
             rayon::join(
-                || self.node(eb, nb, below_box, depth + 1),
-                || self.node(ea, na, above_box, depth + 1),
+                || self.node(eb, nb, below_box, depth + 1, below_budget),
+                || self.node(ea, na, above_box, depth + 1, above_budget),
             )
         } else {
             (
-                self.node(eb, nb, below_box, depth + 1),
-                self.node(ea, na, above_box, depth + 1),
+                self.node(eb, nb, below_box, depth + 1, below_budget),
+                self.node(ea, na, above_box, depth + 1, above_budget),
             )
         };
         BuildNode::Inner {
@@ -292,6 +303,16 @@ impl Ctx<'_> {
 }
 
 /// References described by a list of events: one START or PLANAR event each on axis 0.
+/// A node's references as a leaf: each has exactly one START or PLANAR event on axis 0.
+fn leaf_prims(events: &[Event]) -> Vec<u32> {
+    let axis0 = events.partition_point(|e| e.axis == 0);
+    events[..axis0]
+        .iter()
+        .filter(|e| e.kind != END)
+        .map(|e| e.prim)
+        .collect()
+}
+
 fn count_refs(events: &[Event]) -> usize {
     events
         .iter()
