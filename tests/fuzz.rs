@@ -243,3 +243,51 @@ fn cases_the_fuzzer_found_are_refused_naming_the_object() {
         assert!(e.to_string().contains(expected), "{e}");
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// EXR files (ours, exrmultiview's, multi-view and per-eye) truncated or with bits flipped:
+    /// `compare` reads them or refuses them, never panics.
+    #[test]
+    fn exr_files_truncated_or_with_bits_flipped(
+        file in 0..4usize,
+        cut in any::<prop::sample::Index>(),
+        flips in prop::collection::vec((any::<prop::sample::Index>(), 0u8..8), 0..6),
+        truncate in any::<bool>(),
+    ) {
+        let name = ["ours_stereo.exr", "ours_left.exr", "exrmultiview_piz.exr", "exrmultiview_none.exr"][file];
+        let mut bytes = std::fs::read(common::data().join("exr").join(name)).unwrap();
+        for (at, bit) in flips {
+            let i = at.index(bytes.len());
+            bytes[i] ^= 1 << bit;
+        }
+        if truncate {
+            bytes.truncate(cut.index(bytes.len()));
+        }
+        let dir = common::scratch("fuzz-exr");
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, &bytes).unwrap();
+        if let Err(e) = stereotrace::output::read_planes(&path) {
+            prop_assert!(matches!(e.exit_code(), 1 | 2), "{e}");
+        }
+    }
+}
+
+/// An EXR whose data window a flipped bit inverted (x_min 2^29, x_max 15) made the exr crate
+/// ask for 51 GB and abort the process; it is refused before the crate reads it.
+#[test]
+fn an_exr_with_an_inverted_data_window_is_refused() {
+    let mut bytes = std::fs::read(common::data().join("exr").join("ours_left.exr")).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at..at + 4].copy_from_slice(&(1i32 << 29).to_le_bytes());
+    let dir = common::scratch("fuzz-exr-window");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("inverted.exr");
+    std::fs::write(&path, &bytes).unwrap();
+    let e = stereotrace::output::read_planes(&path).unwrap_err();
+    assert_eq!(e.exit_code(), 2, "{e}");
+    assert!(e.to_string().contains("below its minimum"), "{e}");
+}

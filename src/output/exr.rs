@@ -3,7 +3,7 @@
 //! (`left` first, so it is the default view with plain `R,G,B` channels; the other view as
 //! `right.R` etc.), or one file per view carrying a `view` attribute. Scanline, ZIP, float32 or half.
 
-use super::exr_chunks::with_true_chunk_count;
+use super::exr_header::{check_size, with_true_chunk_count};
 use super::image::Image;
 use super::planes::Planes;
 use super::write_atomic;
@@ -116,6 +116,9 @@ fn channel_rank(name: &str) -> (usize, String) {
 /// yields one view named by its layer name, or `""`.
 pub fn read_view_planes(path: &Path) -> Result<Vec<(String, Planes)>> {
     let bytes = crate::paths::read_regular(path)?;
+    // Eight samples per pixel of the largest film: a 16384x16384 stereo RGBA file.
+    check_size(&bytes, 8 * MAX_READ_PIXELS as u64)
+        .map_err(|m| Error::input(path, format!("not a readable EXR file: {m}")))?;
     let bytes = with_true_chunk_count(&bytes).unwrap_or(bytes);
     let image = read()
         .no_deep_data()

@@ -7,7 +7,7 @@ pub mod anaglyph;
 mod color;
 mod container;
 pub mod exr;
-mod exr_chunks;
+mod exr_header;
 mod fed_process;
 pub mod image;
 mod layout;
