@@ -247,17 +247,24 @@ fn cases_the_fuzzer_found_are_refused_naming_the_object() {
 proptest! {
     #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
 
-    /// EXR files (ours, exrmultiview's, multi-view and per-eye) truncated or with bits flipped:
-    /// `compare` reads them or refuses them, never panics.
+    /// Images `compare` and `assemble` read, truncated or with bits flipped: EXR files (ours,
+    /// exrmultiview's, multi-view and per-eye) and a PNG. They are read or refused, never panic.
     #[test]
-    fn exr_files_truncated_or_with_bits_flipped(
-        file in 0..4usize,
+    fn image_files_truncated_or_with_bits_flipped(
+        file in 0..5usize,
         cut in any::<prop::sample::Index>(),
         flips in prop::collection::vec((any::<prop::sample::Index>(), 0u8..8), 0..6),
         truncate in any::<bool>(),
     ) {
-        let name = ["ours_stereo.exr", "ours_left.exr", "exrmultiview_piz.exr", "exrmultiview_none.exr"][file];
-        let mut bytes = std::fs::read(common::data().join("exr").join(name)).unwrap();
+        let source = [
+            "exr/ours_stereo.exr",
+            "exr/ours_left.exr",
+            "exr/exrmultiview_piz.exr",
+            "exr/exrmultiview_none.exr",
+            "refs/parallax_markers/preview.png",
+        ][file];
+        let name = Path::new(source).file_name().unwrap();
+        let mut bytes = std::fs::read(common::data().join(source)).unwrap();
         for (at, bit) in flips {
             let i = at.index(bytes.len());
             bytes[i] ^= 1 << bit;
