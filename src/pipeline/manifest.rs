@@ -204,7 +204,7 @@ impl Stale {
 
 /// One line per reason: how many frames, which, and (for changed files) the first file.
 /// `never` holds the runs of frames that have no manifest line at all.
-pub fn describe_stale(stale: &[(Stale, u32)], never: &[(u32, u32)]) -> Vec<String> {
+fn describe_stale(stale: &[(Stale, u32)], never: &[(u32, u32)]) -> Vec<String> {
     let mut lines = Vec::new();
     for kind in [
         Stale::NeverFinished.kind(),

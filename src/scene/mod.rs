@@ -327,10 +327,6 @@ impl Scene {
         pose::pose(self, &overrides)
     }
 
-    pub fn triangle_count(&self) -> usize {
-        self.meshes.iter().map(Mesh::triangle_count).sum()
-    }
-
     /// Triangles of the posed scene, counted without posing it: a mesh counts once per node
     /// that places it (a small file can place one big mesh thousands of times).
     pub fn placed_triangle_count(&self) -> usize {
