@@ -86,9 +86,24 @@ pub enum Command {
         quiet: bool,
     },
     /// Validate a pipeline and its scene without rendering.
+    #[command(after_help = "Examples:\n  \
+        stereotrace check my.toml\n  \
+        stereotrace check my.toml --depth              each frame's rig and parallax, no render\n  \
+        stereotrace check my.toml --depth --frames 0..47")]
     Check {
         /// Pipeline file (TOML).
         pipeline: PathBuf,
+        /// Probe every frame's depth (one closest-hit ray per probe pixel, no shading) and print
+        /// the rig each frame gets and its parallax against the depth budget: what the render
+        /// will log in frame-log.csv.
+        #[arg(long)]
+        depth: bool,
+        /// With --depth: frame range A..B (inclusive) or one frame N instead of [frames].
+        #[arg(long, value_parser = parse_frame_range, requires = "depth")]
+        frames: Option<(u32, u32)>,
+        /// With --depth: worker threads (0 = all cores).
+        #[arg(long, requires = "depth")]
+        threads: Option<usize>,
         /// Refuse before allocating when the render would need more memory than SIZE (512M,
         /// 16G, or none); default: three quarters of the machine's memory.
         #[arg(long, value_name = "SIZE", value_parser = parse_memory_limit)]

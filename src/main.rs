@@ -6,7 +6,7 @@ use std::io::IsTerminal;
 use std::process::ExitCode;
 use stereotrace::bench::{accel, memory, sweep};
 use stereotrace::pipeline::{
-    Bytes, LoadedPipeline, MemoryEstimate, RunOptions, assemble, memory_limit,
+    Bytes, LoadedPipeline, MemoryEstimate, RunOptions, assemble, depth_check, memory_limit,
 };
 use stereotrace::{Error, Result, compare, info, thread_pool};
 
@@ -99,6 +99,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let summary = stereotrace::pipeline::run(&p, &opts)?;
             if !quiet {
                 note!("{summary}");
+            } else if let Some(w) = summary.depth.warning() {
+                note!("warning: {w}");
             }
         }
         Command::Assemble {
@@ -123,12 +125,23 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Check {
             pipeline,
             max_memory,
+            depth,
+            frames,
+            threads,
         } => {
             let p = LoadedPipeline::load(&pipeline)?;
             warn_all(&p.warnings);
             let estimate = MemoryEstimate::of(&p);
             estimate.check(&p.file, memory_limit(max_memory))?;
             out!("{p}; about {} of memory", Bytes(estimate.total()));
+            if depth {
+                let threads = threads.unwrap_or(p.spec.render.threads);
+                let report = thread_pool(threads)?.install(|| depth_check(&p, frames))?;
+                out!("{report}");
+                if let Some(w) = report.summary.warning() {
+                    note!("warning: {w}");
+                }
+            }
         }
         Command::Compare {
             a,

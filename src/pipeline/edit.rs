@@ -84,7 +84,7 @@ mod tests {
         let p = Pipeline::parse(Path::new("p.toml"), &doc.to_string()).unwrap();
         assert_eq!(p.render.spp, 16);
         assert_eq!(p.accel.split, SplitMethod::Center);
-        assert_eq!(p.stereo.interaxial, 0.1);
+        assert_eq!(p.stereo.interaxial, crate::pipeline::Metres::Fixed(0.1));
         assert!(doc.to_string().contains("method = \"gray\""));
         for (key, why) in [
             ("output[3].method", "has 1 entries"),

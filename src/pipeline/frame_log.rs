@@ -3,6 +3,7 @@
 //! in the manifest and `assemble` merges them.
 
 use super::FrameStats;
+use super::rig_plan::FrameRig;
 use crate::render::View;
 
 /// The frame log every run writes beside the outputs.
@@ -14,8 +15,12 @@ pub const FRAME_LOG: &str = "frame-log.csv";
 /// `reused_samples`: camera samples that took another view's hit under `eye_reuse =
 /// "reproject"`, `traced_samples`: those that traced their camera ray, `reused_shadow_rays`:
 /// shadow answers taken with the reused hits, `reused_radiance_samples`: reused samples that
-/// took the radiance too under `"reproject-radiance"`; all per frame).
-pub const FRAME_LOG_COLUMNS: [&str; 14] = [
+/// took the radiance too under `"reproject-radiance"`; all per frame). Then the frame's rig and
+/// depth budget (stereo rigs; empty for mono): `convergence_m` and `interaxial_m` as traced,
+/// the nearest and farthest visible point (`near_m`, `far_m`) with their parallax in pixels and
+/// in percent of the width (negative in front of the screen), `over_budget` (1 when the frame
+/// leaves `[stereo]`'s depth budget), and the floating-window borders in pixels.
+pub const FRAME_LOG_COLUMNS: [&str; 25] = [
     "frame",
     "object",
     "action",
@@ -30,6 +35,17 @@ pub const FRAME_LOG_COLUMNS: [&str; 14] = [
     "traced_samples",
     "reused_shadow_rays",
     "reused_radiance_samples",
+    "convergence_m",
+    "interaxial_m",
+    "near_m",
+    "far_m",
+    "near_parallax_px",
+    "far_parallax_px",
+    "near_parallax_pct",
+    "far_parallax_pct",
+    "over_budget",
+    "window_left_px",
+    "window_right_px",
 ];
 
 /// The frame's rows of `frame-log.csv`: one per object the acceleration update touched.
@@ -42,11 +58,12 @@ pub fn rows(frame: u32, stats: &FrameStats) -> Vec<Vec<String>> {
             _ => 2,
         }] += secs;
     }
+    let rig = rig_columns(stats.rig.as_ref());
     stats
         .update
         .iter()
         .map(|row| {
-            vec![
+            let mut columns = vec![
                 frame.to_string(),
                 row.object.clone(),
                 row.action.to_string(),
@@ -61,7 +78,36 @@ pub fn rows(frame: u32, stats: &FrameStats) -> Vec<Vec<String>> {
                 stats.rays.primary.to_string(),
                 stats.rays.reused_shadow.to_string(),
                 stats.rays.reused_radiance.to_string(),
-            ]
+            ];
+            columns.extend(rig.iter().cloned());
+            columns
         })
         .collect()
+}
+
+/// The rig and depth-budget columns of a frame (empty without a stereo rig, and the depth
+/// columns empty when nothing was hit).
+fn rig_columns(rig: Option<&FrameRig>) -> Vec<String> {
+    let Some(r) = rig else {
+        return vec![String::new(); 11];
+    };
+    let depth = r.depth.map_or(vec![String::new(); 6], |d| {
+        vec![
+            format!("{:.4}", d.near),
+            format!("{:.4}", d.far),
+            format!("{:.3}", d.near_pixels),
+            format!("{:.3}", d.far_pixels),
+            format!("{:.3}", r.percent(d.near_pixels)),
+            format!("{:.3}", r.percent(d.far_pixels)),
+        ]
+    });
+    let mut columns = vec![
+        format!("{:.4}", r.convergence),
+        format!("{:.5}", r.interaxial),
+    ];
+    columns.extend(depth);
+    columns.push((r.over_budget as u8).to_string());
+    columns.push(format!("{:.2}", r.window.0));
+    columns.push(format!("{:.2}", r.window.1));
+    columns
 }

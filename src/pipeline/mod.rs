@@ -8,6 +8,7 @@
 
 mod assemble;
 mod collisions;
+mod depth_check;
 mod edit;
 mod frame_log;
 mod interrupt;
@@ -16,6 +17,7 @@ mod manifest;
 mod memory;
 mod output_spec;
 mod outputs;
+mod rig_plan;
 pub mod run;
 mod schema;
 mod shard;
@@ -25,6 +27,7 @@ mod trace;
 mod validate;
 
 pub use assemble::{Assembled, assemble};
+pub use depth_check::{DepthReport, depth_check};
 pub use frame_log::FRAME_LOG_COLUMNS;
 pub use location::{Key, line_column};
 pub use memory::{
@@ -32,9 +35,11 @@ pub use memory::{
 };
 pub use output_spec::{ExrViews, OutputSpec, PairLayout};
 pub use outputs::StereoFrame;
+pub use rig_plan::{DepthSummary, FrameProbe, FrameRig, RigPlanner};
 pub use run::{RunOptions, RunSummary, run};
 pub use schema::{
-    AccelSection, FramesSection, Pipeline, RenderSection, SceneSection, Selector, StereoSection,
+    AccelSection, FramesSection, Metres, Pipeline, RenderSection, SceneSection, Selector,
+    StereoSection,
 };
 pub use shard::{Shard, ShardArg, parse_shard};
 pub use starter::new_pipeline;
@@ -50,7 +55,7 @@ use location::{Invalid, invalid, locate};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use validate::{check_animation, resolve_camera, validate_values};
+use validate::{check_animation, check_named_nodes, resolve_camera, validate_values};
 
 /// A pipeline file read, checked and with its scene loaded: ready to render.
 #[derive(Debug)]
@@ -168,6 +173,7 @@ impl LoadedPipeline {
             ));
         }
         check_animation(&spec, &scene).map_err(at)?;
+        check_named_nodes(&spec, &scene).map_err(at)?;
         if let Some(i) = spec.outputs.iter().position(|o| o.video().is_some())
             && !ffmpeg_available()
         {
@@ -201,6 +207,14 @@ impl LoadedPipeline {
                 .collect(),
             Selector::Index(i) => all.get(*i).into_iter().collect(),
         }
+    }
+
+    /// The first node called `name` (names are checked when the pipeline loads).
+    pub fn node_named(&self, name: &str) -> Option<usize> {
+        self.scene
+            .nodes
+            .iter()
+            .position(|n| n.name.as_deref() == Some(name))
     }
 
     /// The views of the rig itself: left and right, or the centre for a mono rig.

@@ -100,6 +100,10 @@ pub enum OutputSpec {
         per_frame: bool,
         #[serde(default)]
         dither: bool,
+        /// What stays still while the views swing: `"convergence"` (the zero-parallax plane) or
+        /// the name of a node, whose origin each view is shifted to hold in place.
+        #[serde(default = "default_pivot")]
+        pivot: String,
         #[serde(default)]
         exposure: f32,
         #[serde(default)]
@@ -133,6 +137,9 @@ fn default_pseudo_eye() -> Eye {
 }
 fn default_delay() -> usize {
     1
+}
+fn default_pivot() -> String {
+    "convergence".to_string()
 }
 fn default_views() -> usize {
     2
@@ -200,6 +207,14 @@ impl OutputSpec {
             | OutputSpec::TopBottom(PairLayout { video, .. })
             | OutputSpec::Interlaced { video, .. }
             | OutputSpec::PseudoStereo { video, .. } => video.as_deref(),
+            _ => None,
+        }
+    }
+
+    /// The node a wobble GIF pivots on, if it names one.
+    pub fn pivot_node(&self) -> Option<&str> {
+        match self {
+            OutputSpec::WobbleGif { pivot, .. } if pivot != "convergence" => Some(pivot),
             _ => None,
         }
     }

@@ -11,6 +11,7 @@ use super::frame_log::{self, FRAME_LOG, FRAME_LOG_COLUMNS};
 use super::interrupt::{self, output_dirs};
 use super::manifest::{self, Entry, MANIFEST, Manifest};
 use super::outputs::{FrameFiles, Sequence, Writer};
+use super::rig_plan::DepthSummary;
 use super::shard::{Shard, ShardArg};
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
@@ -54,6 +55,8 @@ pub struct RunSummary {
     pub stale_removed: Vec<PathBuf>,
     /// What a farm run skipped and why, and what is left to do.
     pub notes: Vec<String>,
+    /// The frames' parallax against the depth budget (stereo rigs).
+    pub depth: DepthSummary,
 }
 
 impl fmt::Display for RunSummary {
@@ -87,7 +90,15 @@ impl fmt::Display for RunSummary {
             self.trace_seconds,
             r.total() as f64 * 1e-6 / self.trace_seconds.max(1e-9),
             self.output_seconds,
-        )
+        )?;
+        let depth = self.depth.to_string();
+        if !depth.is_empty() {
+            write!(f, "\n{depth}")?;
+        }
+        if let Some(w) = self.depth.warning() {
+            write!(f, "\nwarning: {w}")?;
+        }
+        Ok(())
     }
 }
 
@@ -326,6 +337,9 @@ fn run_frames(
         summary.trace_seconds += stats.trace_seconds();
         summary.rays.add(&stats.rays);
         summary.eyes_traced += stats.view_seconds.len();
+        if let Some(rig) = &stats.rig {
+            summary.depth.add(frame, rig, tracer.budget());
+        }
         let rows = frame_log::rows(frame, &stats);
         let t = Instant::now();
         // Writers are independent (each its own files), so they encode in parallel; the files

@@ -6,7 +6,7 @@ use super::location::line_column;
 use super::output_spec::OutputSpec;
 use crate::accel::{SplitMethod, UpdateMode};
 use crate::error::{Error, Result};
-use crate::render::{EyeReuse, Rig, ShadingModel};
+use crate::render::{EyeReuse, FloatingWindow, Rig, ShadingModel};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -99,17 +99,84 @@ impl Default for RenderSection {
 #[serde(deny_unknown_fields, default)]
 pub struct StereoSection {
     pub rig: Rig,
-    pub interaxial: f32,
-    pub convergence: f32,
+    /// Metres between the eyes, or `"auto"`: the largest the depth budget allows.
+    pub interaxial: Metres,
+    /// Metres to the zero-parallax plane, or `"auto"`: the subject's depth, or the median depth
+    /// at the centre of the frame.
+    pub convergence: Metres,
+    /// A node whose origin `convergence = "auto"` puts at zero parallax.
+    pub subject: Option<String>,
+    /// Crossed parallax allowed, percent of the image width (points in front of the screen).
+    pub budget_front: f32,
+    /// Uncrossed parallax allowed, percent of the image width (points behind the screen).
+    pub budget_behind: f32,
+    /// Width of the screen the film is made for, metres: caps `budget_behind` at the parallax
+    /// that makes a viewer's eyes diverge there.
+    pub screen_width: Option<f32>,
+    /// Frames on either side over which automatic choices are smoothed.
+    pub smoothing: u32,
+    pub floating_window: FloatingWindow,
 }
 
 impl Default for StereoSection {
     fn default() -> Self {
         StereoSection {
             rig: Rig::OffAxis,
-            interaxial: 0.065,
-            convergence: 3.0,
+            interaxial: Metres::Fixed(0.065),
+            convergence: Metres::Fixed(3.0),
+            subject: None,
+            // Stereography practice for large screens: about 1% of the width in front of the
+            // screen and 2% behind it (2.5 inches of eye separation on a 10-foot screen).
+            budget_front: 1.0,
+            budget_behind: 2.0,
+            screen_width: None,
+            // Half a second at 24 fps each way: slow enough not to pump with the action.
+            smoothing: 12,
+            floating_window: FloatingWindow::Off,
         }
+    }
+}
+
+/// A distance the user fixes or leaves to the tool: a number of metres or `"auto"`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Metres {
+    Fixed(f32),
+    Auto,
+}
+
+impl Metres {
+    pub fn fixed(self) -> Option<f32> {
+        match self {
+            Metres::Fixed(m) => Some(m),
+            Metres::Auto => None,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Metres {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Metres, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = Metres;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number of metres or \"auto\"")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> std::result::Result<Metres, E> {
+                Ok(Metres::Fixed(v as f32))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> std::result::Result<Metres, E> {
+                Ok(Metres::Fixed(v as f32))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<Metres, E> {
+                match v {
+                    "auto" => Ok(Metres::Auto),
+                    _ => Err(E::custom(format!(
+                        "expected a number of metres or \"auto\", got \"{v}\""
+                    ))),
+                }
+            }
+        }
+        d.deserialize_any(V)
     }
 }
 
@@ -210,7 +277,7 @@ mod tests {
             (640, 360, 4, 8)
         );
         assert_eq!(p.stereo.rig, Rig::OffAxis);
-        assert_eq!(p.stereo.interaxial, 0.065);
+        assert_eq!(p.stereo.interaxial, Metres::Fixed(0.065));
         assert_eq!(p.frames.fps, 24.0);
         assert_eq!(p.accel.split, SplitMethod::Sah);
         assert_eq!(p.scene.animation, Selector::Name("all".into()));

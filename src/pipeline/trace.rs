@@ -4,11 +4,13 @@
 
 use super::LoadedPipeline;
 use super::outputs::StereoFrame;
-use crate::accel::{BuildParams, LogRow, Updater};
+use super::rig_plan::{FrameProbe, FrameRig, RigPlanner};
+use crate::accel::{BuildParams, Intersect, LogRow, Updater};
+use crate::output::Image;
 use crate::render::{
-    EyeCamera, EyeReuse, FilmParams, Integrator, RECORDED_LIGHTS, RayCounts, Reprojection,
-    RigParams, SceneView, SourceSample, TILE, TraceSettings, View, ViewFilm, ViewRole,
-    render_views,
+    Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ProbeCamera, RECORDED_LIGHTS,
+    RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample, TILE, TraceSettings,
+    VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -24,6 +26,8 @@ pub struct FrameStats {
     /// Tracing time per view, in the order traced.
     pub view_seconds: Vec<(View, f64)>,
     pub rays: RayCounts,
+    /// The rig the frame was traced with and its depth budget (stereo rigs).
+    pub rig: Option<FrameRig>,
 }
 
 impl FrameStats {
@@ -46,6 +50,93 @@ pub struct FrameTracer<'p> {
     range_bounds: Option<(Vec3, Vec3)>,
     /// Set to stop tracing (`render`'s Ctrl-C): tiles not started then stay black.
     stop: Option<&'static AtomicBool>,
+    /// The rig of each frame (stereo rigs), and where it probes other frames when an automatic
+    /// choice is smoothed over them.
+    planner: Option<RigPlanner>,
+    prober: Option<Prober<'p>>,
+}
+
+/// Probes frames apart from the frame being traced, with acceleration structures of its own.
+struct Prober<'p> {
+    p: &'p LoadedPipeline,
+    animations: Vec<&'p Animation>,
+    updater: Updater,
+    range_bounds: Option<(Vec3, Vec3)>,
+}
+
+impl Prober<'_> {
+    fn probe(&mut self, frame: u32) -> FrameProbe {
+        let posed = self
+            .p
+            .scene
+            .pose_at(&self.animations, frame as f32 / self.p.spec.frames.fps);
+        let (accel, _) = self.updater.update(&posed);
+        let bounds = self.range_bounds.or_else(|| posed.geometry.bounds());
+        frame_probe(self.p, &posed, bounds, &accel)
+    }
+}
+
+/// The planner's rig for `frame`: probing other frames through the prober when the rig is
+/// smoothed over them, the frame being traced through `here` otherwise.
+fn plan_rig(
+    planner: &mut Option<RigPlanner>,
+    prober: &mut Option<Prober>,
+    frame: u32,
+    here: impl FnOnce() -> FrameProbe,
+) -> Option<FrameRig> {
+    let planner = planner.as_mut()?;
+    Some(match prober.as_mut() {
+        Some(prober) => planner.rig(frame, &mut |f| prober.probe(f)),
+        None => {
+            let probe = here();
+            planner.rig(frame, &mut |_| probe.clone())
+        }
+    })
+}
+
+/// The depth probe of a posed frame through its camera, with the subject's depth.
+fn frame_probe(
+    p: &LoadedPipeline,
+    posed: &PosedScene,
+    bounds: Option<(Vec3, Vec3)>,
+    accel: &impl Intersect,
+) -> FrameProbe {
+    let (world, yfov, znear, zfar) = frame_camera(p, posed, bounds);
+    let camera = ProbeCamera {
+        world,
+        yfov,
+        znear,
+        zfar,
+        width: p.spec.render.width,
+        height: p.spec.render.height,
+    };
+    let subject = p.spec.stereo.subject.as_deref().and_then(|name| {
+        let node = p.node_named(name)?;
+        let origin = posed.node_world[node].transform_point3(Vec3::ZERO);
+        Some(-world.inverse().transform_point3(origin).z)
+    });
+    FrameProbe {
+        depth: DepthProbe::measure(accel, &camera),
+        subject,
+        camera,
+    }
+}
+
+/// Blackens a view's floating-window borders, `(left, right)` pixels wide; a fractional border
+/// covers its last column in part, so a border that moves from frame to frame moves smoothly.
+fn mask_window(image: &mut Image, (left, right): (f32, f32)) {
+    let w = image.width;
+    for x in 0..w {
+        let from_left = (left - x as f32).clamp(0.0, 1.0);
+        let from_right = (right - (w - 1 - x) as f32).clamp(0.0, 1.0);
+        let keep = (1.0 - from_left) * (1.0 - from_right);
+        if keep < 1.0 {
+            for y in 0..image.height {
+                let v = image.get(x, y);
+                image.set(x, y, v * keep);
+            }
+        }
+    }
 }
 
 impl<'p> FrameTracer<'p> {
@@ -66,13 +157,54 @@ impl<'p> FrameTracer<'p> {
         let range_bounds = (p.camera_instance.is_none() || !lit)
             .then(|| range_bounds(p, &animations))
             .flatten();
+        let range = (p.spec.frames.start, p.spec.frames.end);
+        let planner =
+            (p.spec.stereo.rig != Rig::Mono).then(|| RigPlanner::new(&p.spec.stereo, range));
+        let prober = planner
+            .as_ref()
+            .filter(|planner| planner.needs_neighbours())
+            .map(|_| Prober {
+                p,
+                animations: animations.clone(),
+                updater: Updater::new(
+                    &p.scene,
+                    &animations,
+                    BuildParams::with_method(p.spec.accel.split),
+                    p.spec.accel.update,
+                    p.spec.accel.auto_threshold,
+                ),
+                range_bounds,
+            });
         FrameTracer {
             p,
             animations,
             updater,
             range_bounds,
             stop: None,
+            planner,
+            prober,
         }
+    }
+
+    /// The rig `frame` will be traced with, and its depth budget, without tracing it (`check
+    /// --depth`); `None` for a mono rig.
+    pub fn plan(&mut self, frame: u32) -> Option<FrameRig> {
+        let p = self.p;
+        let posed = p
+            .scene
+            .pose_at(&self.animations, frame as f32 / p.spec.frames.fps);
+        let (accel, _) = self.updater.update(&posed);
+        let bounds = self.range_bounds.or_else(|| posed.geometry.bounds());
+        plan_rig(&mut self.planner, &mut self.prober, frame, || {
+            frame_probe(p, &posed, bounds, &accel)
+        })
+    }
+
+    /// The depth budget frames are held to.
+    pub fn budget(&self) -> Budget {
+        self.planner
+            .as_ref()
+            .map_or(Budget::new(0.0, 0.0, None), RigPlanner::budget)
     }
 
     /// Tiles not yet started are skipped once `stop` is set; a frame traced while it was set is
@@ -119,10 +251,21 @@ impl<'p> FrameTracer<'p> {
                 background: Vec3::from(spec.render.background),
             },
         };
+        stats.rig = plan_rig(&mut self.planner, &mut self.prober, frame, || {
+            frame_probe(p, &posed, bounds, &accel)
+        });
         let rig = RigParams {
             rig: spec.stereo.rig,
-            interaxial: spec.stereo.interaxial,
-            convergence: spec.stereo.convergence,
+            interaxial: stats
+                .rig
+                .map_or(spec.stereo.interaxial.fixed().unwrap_or(VIEWER_EYES), |r| {
+                    r.interaxial
+                }),
+            convergence: stats
+                .rig
+                .map_or(spec.stereo.convergence.fixed().unwrap_or(1.0), |r| {
+                    r.convergence
+                }),
             width: spec.render.width,
             height: spec.render.height,
             yfov,
@@ -197,7 +340,10 @@ impl<'p> FrameTracer<'p> {
             if matches!(role, ViewRole::Source) {
                 source = Some((cameras[0].clone(), rendered.samples));
             }
-            for (view, image) in pass.into_iter().zip(rendered.images) {
+            for (view, mut image) in pass.into_iter().zip(rendered.images) {
+                if let Some(r) = stats.rig.filter(|r| r.window != (0.0, 0.0)) {
+                    mask_window(&mut image, view_window(view.offset_fraction(), r.window));
+                }
                 stats.view_seconds.push((view, secs));
                 images.push((view, image));
             }

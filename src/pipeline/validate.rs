@@ -4,9 +4,9 @@
 
 use super::collisions::check_collisions;
 use super::location::{Invalid, Key, invalid};
-use super::schema::{Pipeline, Selector};
+use super::schema::{Metres, Pipeline, Selector};
 use super::template::PathTemplate;
-use crate::render::Rig;
+use crate::render::{FloatingWindow, Rig};
 use crate::scene::Scene;
 
 /// Range checks that need no scene; returns the parsed output templates.
@@ -48,22 +48,62 @@ pub(super) fn validate_values(
         ));
     }
     let s = &p.stereo;
-    if !(s.interaxial.is_finite() && s.interaxial >= 0.0) {
+    if let Some(ia) = s.interaxial.fixed()
+        && !(ia.is_finite() && ia >= 0.0)
+    {
         return Err(invalid(
             &[N("stereo"), N("interaxial")],
-            format!(
-                "interaxial must be a finite number >= 0, got {}",
-                s.interaxial
-            ),
+            format!("interaxial must be a finite number >= 0 or \"auto\", got {ia}"),
         ));
     }
-    if !(s.convergence.is_finite() && s.convergence > 0.0) {
+    if let Some(c) = s.convergence.fixed()
+        && !(c.is_finite() && c > 0.0)
+    {
         return Err(invalid(
             &[N("stereo"), N("convergence")],
-            format!(
-                "convergence must be a finite number > 0, got {}",
-                s.convergence
-            ),
+            format!("convergence must be a finite number > 0 or \"auto\", got {c}"),
+        ));
+    }
+    if s.convergence == Metres::Auto && s.rig == Rig::Parallel {
+        return Err(invalid(
+            &[N("stereo"), N("convergence")],
+            "a parallel rig converges at infinity: convergence = \"auto\" needs an \"off-axis\" or \"toe-in\" rig",
+        ));
+    }
+    let budget = [
+        ("budget_front", s.budget_front),
+        ("budget_behind", s.budget_behind),
+    ];
+    for (key, pct) in budget {
+        if !(pct.is_finite() && pct > 0.0 && pct <= 100.0) {
+            return Err(invalid(
+                &[N("stereo"), N(key)],
+                format!("{key} is a percentage of the image width in (0, 100], got {pct}"),
+            ));
+        }
+    }
+    if let Some(w) = s.screen_width
+        && !(w.is_finite() && w > 0.0 && w <= 1000.0)
+    {
+        return Err(invalid(
+            &[N("stereo"), N("screen_width")],
+            format!("screen_width must be in metres, in (0, 1000], got {w}"),
+        ));
+    }
+    if s.smoothing > 1000 {
+        return Err(invalid(
+            &[N("stereo"), N("smoothing")],
+            format!("smoothing must be at most 1000 frames, got {}", s.smoothing),
+        ));
+    }
+    if s.rig == Rig::Mono
+        && (s.floating_window == FloatingWindow::Auto
+            || s.interaxial == Metres::Auto
+            || s.convergence == Metres::Auto)
+    {
+        return Err(invalid(
+            &[N("stereo"), N("rig")],
+            "a mono rig has no parallax: floating_window, interaxial = \"auto\" and convergence = \"auto\" need a stereo rig",
         ));
     }
     // Reprojection looks for a sample's hit on its own film row and pixel window; a toe-in
@@ -114,6 +154,43 @@ pub(super) fn validate_values(
     }
     check_collisions(p, &templates)?;
     Ok(templates)
+}
+
+/// Every node a pipeline names (`[stereo] subject`, a wobble GIF's `pivot`) exists in the scene.
+pub(super) fn check_named_nodes(
+    p: &Pipeline,
+    scene: &Scene,
+) -> std::result::Result<(), Invalid<'static>> {
+    use Key::Name as N;
+    let exists = |name: &str| scene.nodes.iter().any(|n| n.name.as_deref() == Some(name));
+    let missing = |name: &str| {
+        let mut names: Vec<&str> = scene
+            .nodes
+            .iter()
+            .filter_map(|n| n.name.as_deref())
+            .collect();
+        names.truncate(20);
+        format!(
+            "the scene has no node named \"{name}\" (named nodes: {})",
+            names.join(", ")
+        )
+    };
+    if let Some(name) = &p.stereo.subject
+        && !exists(name)
+    {
+        return Err(invalid(&[N("stereo"), N("subject")], missing(name)));
+    }
+    for (i, o) in p.outputs.iter().enumerate() {
+        if let Some(name) = o.pivot_node()
+            && !exists(name)
+        {
+            return Err(invalid(
+                &[N("output"), Key::Index(i), N("pivot")],
+                missing(name),
+            ));
+        }
+    }
+    Ok(())
 }
 
 pub(super) fn resolve_camera(

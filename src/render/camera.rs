@@ -139,6 +139,12 @@ impl EyeCamera {
             * self.to_rig
     }
 
+    /// Depth of a world point along the rig's viewing axis (metres; negative behind the rig):
+    /// for off-axis and parallel rigs every eye's depth.
+    pub fn depth(&self, world_point: Vec3) -> f32 {
+        -self.to_rig.transform_point3(world_point).z
+    }
+
     /// Depth of the near plane, metres: camera rays start there.
     pub fn znear(&self) -> f32 {
         self.znear

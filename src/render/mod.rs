@@ -1,8 +1,11 @@
 //! `render/` turns a posed frame into linear radiance images, one per eye: the stereo rig, the
-//! Whitted integrator and its shading models, pixel sampling, and the tiled parallel frame loop.
+//! Whitted integrator and its shading models, pixel sampling, the tiled parallel frame loop, and
+//! the depth probe with the stereo comfort rules it feeds.
 //! It sees geometry only through `accel::Intersect` and never knows an output file format.
 
 mod camera;
+mod comfort;
+mod depth;
 mod frame;
 mod integrator;
 mod reproject;
@@ -11,6 +14,11 @@ mod shading;
 mod view;
 
 pub use camera::{EyeCamera, Rig, RigParams};
+pub use comfort::{
+    Budget, DepthRange, FloatingWindow, ParallaxModel, VIEWER_EYES, auto_interaxial,
+    divergence_limit, view_window, window_need,
+};
+pub use depth::{DepthProbe, PROBE_COLUMNS, ProbeCamera, probe_grid};
 pub use frame::{
     EyeReuse, FilmParams, Rendered, TILE, ViewFilm, ViewRole, render_views, tile_count,
 };
