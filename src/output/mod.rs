@@ -29,8 +29,8 @@ pub use png::{read_rgb8, to_srgb8, write_png, write_rgb8};
 pub use pseudo::{Channels, PseudoStereo};
 pub use read::read_planes;
 pub use table::{CsvStream, csv_line, read_csv, write_csv};
-pub use video::{VideoEncoder, check_path as check_video_path, ffmpeg_available};
-pub use wobble::{Mode as WobbleMode, schedule as wobble_schedule, write_gif};
+pub use video::{StereoPacking, VideoEncoder, check_path as check_video_path, ffmpeg_available};
+pub use wobble::{Mode as WobbleMode, pivot_shift, schedule as wobble_schedule, write_gif};
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};

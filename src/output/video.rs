@@ -28,10 +28,48 @@ pub fn check_path(path: &Path) -> std::result::Result<(), String> {
     }
 }
 
+/// How a video's frames hold both eyes, for the container's and the codec's stereo signalling.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StereoPacking {
+    /// Left and right halves; `right_first` when the right eye is on the left (cross-eyed).
+    SideBySide { right_first: bool },
+    /// Top and bottom halves; `right_first` when the right eye is on top.
+    TopBottom { right_first: bool },
+    /// Alternate rows, the first row from the left eye unless `right_first`.
+    Rows { right_first: bool },
+}
+
+impl StereoPacking {
+    /// Matroska's `StereoMode` as FFmpeg's Matroska muxer names it (its `stereo_mode` tag).
+    fn matroska_mode(self) -> &'static str {
+        match self {
+            StereoPacking::SideBySide { right_first: false } => "left_right",
+            StereoPacking::SideBySide { right_first: true } => "right_left",
+            StereoPacking::TopBottom { right_first: false } => "top_bottom",
+            StereoPacking::TopBottom { right_first: true } => "bottom_top",
+            StereoPacking::Rows { right_first: false } => "row_interleaved_lr",
+            StereoPacking::Rows { right_first: true } => "row_interleaved_rl",
+        }
+    }
+
+    /// The H.264 frame-packing arrangement SEI type (ITU-T H.264 table D-8: 2 rows, 3 side by
+    /// side, 4 top and bottom). x264 writes it with frame 0 as the left view, so packings with
+    /// the right eye first get none rather than a wrong one.
+    fn h264_frame_packing(self) -> Option<u8> {
+        match self {
+            StereoPacking::Rows { right_first: false } => Some(2),
+            StereoPacking::SideBySide { right_first: false } => Some(3),
+            StereoPacking::TopBottom { right_first: false } => Some(4),
+            _ => None,
+        }
+    }
+}
+
 pub struct VideoEncoder {
     path: PathBuf,
     tmp: PathBuf,
     fps: f32,
+    stereo: Option<StereoPacking>,
     child: Option<(FedProcess, usize, usize)>,
 }
 
@@ -46,8 +84,17 @@ impl VideoEncoder {
             path,
             tmp,
             fps,
+            stereo: None,
             child: None,
         }
+    }
+
+    /// Signals the frames' stereo packing in the file: Matroska and WebM get the `StereoMode`
+    /// element, H.264 (every container but WebM) the frame-packing arrangement SEI, which
+    /// FFmpeg and stereo players read as the stream's stereo 3D side data.
+    pub fn with_stereo(mut self, packing: Option<StereoPacking>) -> VideoEncoder {
+        self.stereo = packing;
+        self
     }
 
     /// Appends one frame (RGB, 8 bits per channel); the first frame fixes the size.
@@ -57,11 +104,24 @@ impl VideoEncoder {
                 std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
             }
             let webm = self.path.extension().is_some_and(|e| e == "webm");
+            let matroska = webm || self.path.extension().is_some_and(|e| e == "mkv");
             let codec: &[&str] = if webm {
                 &["-c:v", "libvpx-vp9", "-b:v", "0", "-crf", "30"]
             } else {
                 &["-c:v", "libx264", "-crf", "18", "-preset", "medium"]
             };
+            let mut stereo: Vec<String> = Vec::new();
+            if let Some(packing) = self.stereo {
+                if let Some(kind) = packing.h264_frame_packing().filter(|_| !webm) {
+                    stereo.extend(["-x264-params".into(), format!("frame-packing={kind}")]);
+                }
+                if matroska {
+                    stereo.extend([
+                        "-metadata:s:v:0".into(),
+                        format!("stereo_mode={}", packing.matroska_mode()),
+                    ]);
+                }
+            }
             let mut command = Command::new("ffmpeg");
             // In a process group of its own, so that Ctrl-C at the terminal reaches only
             // stereotrace, which then stops ffmpeg itself and removes its temporary file.
@@ -83,6 +143,7 @@ impl VideoEncoder {
                 .arg(format!("{}", self.fps))
                 .args(["-i", "-"])
                 .args(codec)
+                .args(&stereo)
                 // yuv420p for players' sake; it needs even sizes, so pad odd ones by a pixel.
                 .args([
                     "-pix_fmt",

@@ -2,7 +2,7 @@
 //! depth. The palette is one global 256-colour palette from NeuQuant (the `color_quant` crate the
 //! gif crate itself uses) over all frames, optionally with Floyd-Steinberg dithering.
 
-use super::write_atomic;
+use super::{Image, write_atomic};
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::path::Path;
@@ -24,6 +24,22 @@ pub fn schedule(views: usize, mode: Mode) -> Vec<usize> {
         s.extend((1..views - 1).rev());
     }
     s
+}
+
+/// The image moved `dx` whole pixels to the right (left when negative), the columns it uncovers
+/// black: a wobble view shifted so that a chosen point lands where it does in the other views.
+pub fn pivot_shift(img: &Image, dx: i64) -> Image {
+    let mut out = Image::new(img.width, img.height);
+    let w = img.width as i64;
+    for y in 0..img.height {
+        for x in 0..w {
+            let from = x - dx;
+            if (0..w).contains(&from) {
+                out.set(x as usize, y, img.get(from as usize, y));
+            }
+        }
+    }
+    out
 }
 
 /// NeuQuant sampling factor: 1 is best and slowest, 30 fastest; 10 is the customary default.

@@ -4,8 +4,8 @@
 
 use super::template::PathTemplate;
 use crate::output::{
-    AnaglyphMethod, AnaglyphSpace, Channels, Display, Order, ToneMap, WobbleMode, check_video_path,
-    wobble_schedule,
+    AnaglyphMethod, AnaglyphSpace, Channels, Display, Order, StereoPacking, ToneMap, WobbleMode,
+    check_video_path, wobble_schedule,
 };
 use crate::render::{Eye, View};
 use serde::Deserialize;
@@ -207,6 +207,24 @@ impl OutputSpec {
             | OutputSpec::TopBottom(PairLayout { video, .. })
             | OutputSpec::Interlaced { video, .. }
             | OutputSpec::PseudoStereo { video, .. } => video.as_deref(),
+            _ => None,
+        }
+    }
+
+    /// How this output's frames hold both eyes, for a video's stereo signalling (`None`: a
+    /// single picture per frame, such as an anaglyph or one eye).
+    pub fn stereo_packing(&self) -> Option<StereoPacking> {
+        let right_first = |order: &Order| *order == Order::Cross;
+        match self {
+            OutputSpec::SideBySide(l) => Some(StereoPacking::SideBySide {
+                right_first: right_first(&l.layout),
+            }),
+            OutputSpec::TopBottom(l) => Some(StereoPacking::TopBottom {
+                right_first: right_first(&l.layout),
+            }),
+            OutputSpec::Interlaced { layout, .. } => Some(StereoPacking::Rows {
+                right_first: right_first(layout),
+            }),
             _ => None,
         }
     }

@@ -8,9 +8,9 @@ use super::output_spec::{ExrViews, OutputSpec, PairLayout};
 use super::template::PathTemplate;
 use crate::error::{Error, Result};
 use crate::output::{
-    Display, Image, PseudoStereo, VideoEncoder, interlaced, make_anaglyph, side_by_side, to_srgb8,
-    top_bottom, wobble_schedule, write_gif, write_multiview, write_png, write_rgb8,
-    write_single_view,
+    Display, Image, PseudoStereo, VideoEncoder, interlaced, make_anaglyph, pivot_shift,
+    side_by_side, to_srgb8, top_bottom, wobble_schedule, write_gif, write_multiview, write_png,
+    write_rgb8, write_single_view,
 };
 use crate::render::View;
 use rayon::prelude::*;
@@ -20,6 +20,8 @@ use std::path::{Path, PathBuf};
 pub struct StereoFrame {
     pub frame: u32,
     pub views: Vec<(View, Image)>,
+    /// The parallax (pixels, right eye minus left) of each node a wobble GIF pivots on.
+    pub pivots: Vec<(String, f32)>,
 }
 
 impl StereoFrame {
@@ -218,11 +220,28 @@ impl Writer {
             } => {
                 let k = f.frame.saturating_sub(self.range_start) as usize;
                 let needed = self.spec.views(&self.rig, k);
+                // A named pivot stays put: each view moves by its share of the node's parallax.
+                let pivot = self.spec.pivot_node().map(|name| {
+                    f.pivots
+                        .iter()
+                        .find(|(n, _)| n == name)
+                        .map_or(0.0, |&(_, p)| p)
+                });
+                let view_image = |v: View| -> Result<std::borrow::Cow<Image>> {
+                    let img = f.view(v)?;
+                    Ok(match pivot {
+                        Some(p) => std::borrow::Cow::Owned(pivot_shift(
+                            img,
+                            (-v.offset_fraction() * p).round() as i64,
+                        )),
+                        None => std::borrow::Cow::Borrowed(img),
+                    })
+                };
                 if *per_frame {
                     let mut frames = Vec::new();
                     let mut size = (0, 0);
                     for &i in &wobble_schedule(*views, *mode) {
-                        let (w, h, rgb) = encode(f.view(needed[i])?, &display);
+                        let (w, h, rgb) = encode(&*view_image(needed[i])?, &display);
                         size = (w, h);
                         frames.push(rgb);
                     }
@@ -231,7 +250,7 @@ impl Writer {
                     files.push(p);
                     None
                 } else {
-                    Some(encode(f.view(needed[0])?, &display))
+                    Some(encode(&*view_image(needed[0])?, &display))
                 }
             }
         };
@@ -291,9 +310,9 @@ impl Sequence {
             spec: spec.clone(),
             template: template.clone(),
             out_dir: out_dir.to_path_buf(),
-            video: spec
-                .video()
-                .map(|v| VideoEncoder::new(out_dir.join(v), fps)),
+            video: spec.video().map(|v| {
+                VideoEncoder::new(out_dir.join(v), fps).with_stereo(spec.stereo_packing())
+            }),
             pseudo,
             gif_frames: Vec::new(),
             gif_size: (0, 0),

@@ -8,9 +8,9 @@ use super::rig_plan::{FrameProbe, FrameRig, RigPlanner};
 use crate::accel::{BuildParams, Intersect, LogRow, Updater};
 use crate::output::Image;
 use crate::render::{
-    Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ProbeCamera, RECORDED_LIGHTS,
-    RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample, TILE, TraceSettings,
-    VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
+    Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ParallaxModel, ProbeCamera,
+    RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample, TILE,
+    TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -120,6 +120,42 @@ fn frame_probe(
         subject,
         camera,
     }
+}
+
+/// The parallax of each node a wobble GIF pivots on, under the frame's rig (a node behind the
+/// eyes has none: its views are not shifted).
+fn pivot_parallax(
+    p: &LoadedPipeline,
+    posed: &PosedScene,
+    camera_world: &Mat4,
+    rig: &RigParams,
+) -> Vec<(String, f32)> {
+    let model = ParallaxModel {
+        rig: rig.rig,
+        interaxial: rig.interaxial,
+        convergence: rig.convergence,
+        width: rig.width as f32,
+        tan_x: (rig.yfov * 0.5).tan() * rig.width as f32 / rig.height as f32,
+    };
+    let to_rig = camera_world.inverse();
+    p.spec
+        .outputs
+        .iter()
+        .filter_map(|o| o.pivot_node())
+        .filter_map(|name| {
+            let node = p.node_named(name)?;
+            let origin = posed.node_world[node].transform_point3(Vec3::ZERO);
+            let depth = -to_rig.transform_point3(origin).z;
+            Some((
+                name.to_string(),
+                if depth > 0.0 {
+                    model.pixels(depth)
+                } else {
+                    0.0
+                },
+            ))
+        })
+        .collect()
 }
 
 /// Blackens a view's floating-window borders, `(left, right)` pixels wide; a fractional border
@@ -275,6 +311,7 @@ impl<'p> FrameTracer<'p> {
         let mut traced = StereoFrame {
             frame,
             views: Vec::new(),
+            pivots: pivot_parallax(p, &posed, &camera_world, &rig),
         };
         let film = |view: View| FilmParams {
             width: spec.render.width as usize,
