@@ -1,0 +1,439 @@
+//! Stereo comfort through the whole tool: the frame log's parallax against the WHITTED.md
+//! formula, automatic convergence on a named node, floating windows on the eye that needs them,
+//! stereo signalling in videos (read back with ffprobe), and wobble GIFs pivoting on a node.
+
+mod common;
+
+use base64::Engine as _;
+use common::{ffmpeg, missing_tool, scratch};
+use glam::{Mat4, Vec3};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use stereotrace::output::read_planes;
+use stereotrace::render::{EyeCamera, Rig, RigParams, View};
+
+const YFOV: f32 = 0.8;
+const W: u32 = 160;
+const H: u32 = 90;
+
+/// Two triangles per quad, corners in order around it.
+fn quad(c: [[f32; 3]; 4]) -> Vec<[f32; 3]> {
+    vec![c[0], c[1], c[2], c[0], c[2], c[3]]
+}
+
+/// A scene seen from the origin looking down -Z: a wall at depth 6 filling the view, a square
+/// `near` in front of it, and a node "Subject" at `subject` (no mesh of its own).
+fn scene(dir: &Path, near: Vec<[f32; 3]>, subject: [f32; 3]) -> PathBuf {
+    let wall = quad([
+        [-20.0, -20.0, -6.0],
+        [20.0, -20.0, -6.0],
+        [20.0, 20.0, -6.0],
+        [-20.0, 20.0, -6.0],
+    ]);
+    let mut bytes = Vec::new();
+    let (mut views, mut accessors, mut primitives) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, positions) in [wall, near].iter().enumerate() {
+        let offset = bytes.len();
+        bytes.extend(positions.iter().flatten().flat_map(|f| f.to_le_bytes()));
+        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for p in positions {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12}));
+        accessors.push(json!({"bufferView": k, "componentType": 5126,
+            "count": positions.len(), "type": "VEC3", "min": lo, "max": hi}));
+        primitives.push(json!({"attributes": {"POSITION": k}}));
+    }
+    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let g = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [
+            {"mesh": 0},
+            {"name": "Cam", "camera": 0},
+            {"name": "Subject", "translation": subject}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": YFOV, "znear": 0.1}}],
+        "meshes": [{"primitives": primitives}],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bytes.len(),
+            "uri": format!("data:application/octet-stream;base64,{data}")}]
+    });
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join("scene.gltf");
+    std::fs::write(&path, g.to_string()).unwrap();
+    path
+}
+
+/// A square at `depth` covering film x from `x0` to `x1` (fractions of the half-width, -1 the
+/// left edge) and the middle of the height.
+fn square(depth: f32, x0: f32, x1: f32) -> Vec<[f32; 3]> {
+    let tan_y = (YFOV * 0.5).tan();
+    let tan_x = tan_y * W as f32 / H as f32;
+    let (a, b) = (x0 * tan_x * depth, x1 * tan_x * depth);
+    let y = 0.5 * tan_y * depth;
+    quad([
+        [a, -y, -depth],
+        [b, -y, -depth],
+        [b, y, -depth],
+        [a, y, -depth],
+    ])
+}
+
+fn pipeline(dir: &Path, stereo: &str, outputs: &str) -> PathBuf {
+    let p = dir.join("p.toml");
+    std::fs::write(
+        &p,
+        format!(
+            "[scene]\npath = \"scene.gltf\"\n[render]\nwidth = {W}\nheight = {H}\nspp = 1\n\
+             [stereo]\n{stereo}\n{outputs}"
+        ),
+    )
+    .unwrap();
+    p
+}
+
+fn render(p: &Path, out: &Path) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(out)
+        .arg(p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The frame log's rows as maps from column to value.
+fn log(out: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let mut r = csv::Reader::from_path(out.join("frame-log.csv")).unwrap();
+    let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    r.records()
+        .map(|rec| {
+            let rec = rec.unwrap();
+            header
+                .iter()
+                .cloned()
+                .zip(rec.iter().map(String::from))
+                .collect()
+        })
+        .collect()
+}
+
+fn number(row: &std::collections::HashMap<String, String>, key: &str) -> f32 {
+    row[key]
+        .parse()
+        .unwrap_or_else(|_| panic!("{key} = {:?}", row[key]))
+}
+
+/// WHITTED.md section 2: parallax W/2 * interaxial * (1/c - 1/Z) / tan_x pixels.
+fn whitted_parallax(ia: f32, c: f32, z: f32) -> f32 {
+    let tan_x = (YFOV * 0.5).tan() * W as f32 / H as f32;
+    0.5 * W as f32 * ia * (1.0 / c - 1.0 / z) / tan_x
+}
+
+#[test]
+fn the_frame_log_gives_the_parallax_the_whitted_formula_predicts() {
+    let dir = scratch("comfort-parallax");
+    scene(&dir, square(2.0, -0.3, 0.3), [0.0, 0.0, -4.0]);
+    let p = pipeline(
+        &dir,
+        "interaxial = 0.08\nconvergence = 3.5",
+        "[[output]]\nkind = \"exr\"\npath = \"f.exr\"\n",
+    );
+    render(&p, &dir.join("out"));
+    let rows = log(&dir.join("out"));
+    let row = &rows[0];
+    let (near, far) = (number(row, "near_m"), number(row, "far_m"));
+    assert!(
+        (near - 2.0).abs() < 1e-3 && (far - 6.0).abs() < 1e-3,
+        "{row:?}"
+    );
+    for (column, z) in [("near_parallax_px", 2.0), ("far_parallax_px", 6.0)] {
+        let expected = whitted_parallax(0.08, 3.5, z);
+        let got = number(row, column);
+        assert!(
+            (got - expected).abs() < 0.05,
+            "{column}: {got} vs {expected}"
+        );
+        let pct = number(row, &column.replace("_px", "_pct"));
+        assert!((pct - 100.0 * expected / W as f32).abs() < 0.01);
+    }
+    // 1.8 px in front (1.1% of 160 pixels) is over the default budget of 1%.
+    assert_eq!(row["over_budget"], "1");
+}
+
+#[test]
+fn auto_convergence_puts_the_subject_at_zero_parallax() {
+    let dir = scratch("comfort-subject");
+    let subject = [0.4, -0.2, -4.5];
+    scene(&dir, square(2.0, -0.3, 0.3), subject);
+    let p = pipeline(
+        &dir,
+        "interaxial = \"auto\"\nconvergence = \"auto\"\nsubject = \"Subject\"",
+        "[[output]]\nkind = \"exr\"\npath = \"f.exr\"\n",
+    );
+    render(&p, &dir.join("out"));
+    let row = &log(&dir.join("out"))[0];
+    let (c, ia) = (number(row, "convergence_m"), number(row, "interaxial_m"));
+    let rig = RigParams {
+        rig: Rig::OffAxis,
+        interaxial: ia,
+        convergence: c,
+        width: W,
+        height: H,
+        yfov: YFOV,
+        znear: 0.1,
+        zfar: None,
+    };
+    let point = Vec3::from(subject);
+    let left = EyeCamera::new(Mat4::IDENTITY, &rig, View::LEFT)
+        .project(point)
+        .unwrap();
+    let right = EyeCamera::new(Mat4::IDENTITY, &rig, View::RIGHT)
+        .project(point)
+        .unwrap();
+    assert!((right.x - left.x).abs() < 0.1, "{left} {right} (c {c})");
+    // The automatic interaxial keeps the frame within the budget, touching one of its bounds.
+    assert_eq!(row["over_budget"], "0");
+    let (front, behind) = (
+        number(row, "near_parallax_pct"),
+        number(row, "far_parallax_pct"),
+    );
+    assert!(
+        (front + 1.0).abs() < 0.01 || (behind - 2.0).abs() < 0.01,
+        "{front} {behind}"
+    );
+}
+
+#[test]
+fn a_near_object_at_the_left_edge_gets_a_floating_window_in_the_left_eye_only() {
+    let dir = scratch("comfort-window");
+    // A square 1.5 m away from the left edge to a third of the way in, in front of the 3 m
+    // convergence plane.
+    scene(&dir, square(1.5, -1.5, -0.3), [0.0, 0.0, -4.0]);
+    let outputs = "[[output]]\nkind = \"exr\"\npath = \"f_{eye}.exr\"\nviews = \"separate\"\n";
+    let plain = pipeline(&dir, "interaxial = 0.065\nconvergence = 3.0", outputs);
+    render(&plain, &dir.join("plain"));
+    let windowed = pipeline(
+        &dir,
+        "interaxial = 0.065\nconvergence = 3.0\nfloating_window = \"auto\"",
+        outputs,
+    );
+    render(&windowed, &dir.join("windowed"));
+    let row = &log(&dir.join("windowed"))[0];
+    let (left, right) = (
+        number(row, "window_left_px"),
+        number(row, "window_right_px"),
+    );
+    let expected = -whitted_parallax(0.065, 3.0, 1.5);
+    assert!((left - expected).abs() < 0.05, "{left} vs {expected}");
+    assert_eq!(right, 0.0);
+    // The first three planes (R, G, B) of each eye's file, pixel by pixel.
+    let read = |run: &str, eye: &str| {
+        let planes = &read_planes(&dir.join(run).join(format!("f_{eye}.exr"))).unwrap()[0].1;
+        let at = |x: usize, y: usize| -> [f32; 3] {
+            std::array::from_fn(|c| planes.data[c][y * planes.width + x])
+        };
+        (0..H as usize)
+            .map(|y| (0..W as usize).map(|x| at(x, y)).collect::<Vec<_>>())
+            .collect::<Vec<_>>()
+    };
+    let border = left.floor() as usize;
+    for eye in ["left", "right"] {
+        let (before, after) = (read("plain", eye), read("windowed", eye));
+        for y in 0..H as usize {
+            for x in 0..W as usize {
+                let masked = eye == "left" && x < border;
+                let expect = if masked { [0.0; 3] } else { before[y][x] };
+                if x != border || eye == "right" {
+                    assert_eq!(after[y][x], expect, "{eye} eye at ({x}, {y})");
+                }
+            }
+        }
+    }
+}
+
+/// ffprobe, from the PATH; a missing one fails the test unless `STEREOTRACE_SKIP_FFPROBE=1`.
+fn ffprobe() -> Option<PathBuf> {
+    let found = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join("ffprobe"))
+            .find(|p| p.is_file())
+    });
+    if found.is_none() {
+        missing_tool("ffprobe", "STEREOTRACE_SKIP_FFPROBE");
+    }
+    found
+}
+
+fn probe_json(ffprobe: &Path, args: &[&str], file: &Path) -> serde_json::Value {
+    let o = std::process::Command::new(ffprobe)
+        .args(["-v", "error", "-of", "json"])
+        .args(args)
+        .arg(file)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn stereo_videos_are_reported_as_stereo_by_ffprobe_with_their_layout() {
+    if !ffmpeg() {
+        return;
+    }
+    let Some(ffprobe) = ffprobe() else { return };
+    let dir = scratch("comfort-video");
+    scene(&dir, square(2.0, -0.3, 0.3), [0.0, 0.0, -4.0]);
+    let p = pipeline(
+        &dir,
+        "interaxial = 0.065\nconvergence = 3.0",
+        "[[output]]\nkind = \"side-by-side\"\npath = \"sbs_{frame}.png\"\nvideo = \"sbs.mkv\"\n\
+         [[output]]\nkind = \"side-by-side\"\npath = \"cross_{frame}.png\"\nlayout = \"cross\"\nvideo = \"cross.mkv\"\n\
+         [[output]]\nkind = \"top-bottom\"\npath = \"tb_{frame}.png\"\nvideo = \"tb.webm\"\n\
+         [[output]]\nkind = \"side-by-side\"\npath = \"mp4_{frame}.png\"\nvideo = \"sbs.mp4\"\n",
+    );
+    let out = dir.join("out");
+    render(&p, &out);
+    // Matroska and WebM: the stream's StereoMode, which ffprobe shows as stereo 3D side data.
+    for (file, layout, inverted, tag) in [
+        ("sbs.mkv", "side by side", 0, "left_right"),
+        ("cross.mkv", "side by side", 1, "right_left"),
+        ("tb.webm", "top and bottom", 0, "top_bottom"),
+    ] {
+        let v = probe_json(&ffprobe, &["-show_streams"], &out.join(file));
+        let stream = &v["streams"][0];
+        assert_eq!(stream["tags"]["stereo_mode"], tag, "{file}: {stream}");
+        let side = stream["side_data_list"]
+            .as_array()
+            .and_then(|l| l.iter().find(|s| s["side_data_type"] == "Stereo 3D"))
+            .unwrap_or_else(|| panic!("{file}: no stereo 3D side data in {stream}"));
+        assert_eq!(side["type"], layout, "{file}");
+        assert_eq!(side["inverted"], inverted, "{file}");
+    }
+    // MP4: H.264's frame-packing SEI, reported on the decoded frames; ffprobe names the side
+    // data and FFmpeg's showinfo filter prints its layout.
+    let mp4 = out.join("sbs.mp4");
+    let v = probe_json(&ffprobe, &["-show_frames", "-read_intervals", "%+#1"], &mp4);
+    let frame_side = v["frames"][0]["side_data_list"].to_string();
+    assert!(frame_side.contains("Stereo 3D"), "{frame_side}");
+    let o = std::process::Command::new("ffmpeg")
+        .args(["-hide_banner", "-i"])
+        .arg(&mp4)
+        .args(["-vf", "showinfo", "-frames:v", "1", "-f", "null", "-"])
+        .output()
+        .unwrap();
+    let info = String::from_utf8_lossy(&o.stderr);
+    assert!(info.contains("Stereo 3D: type - side by side"), "{info}");
+}
+
+#[test]
+fn a_wobble_gif_pivoting_on_a_node_holds_that_node_still() {
+    let dir = scratch("comfort-wobble");
+    // A narrow bright bar at the subject's depth (5 m), well behind the 3 m convergence plane.
+    let tan_y = (YFOV * 0.5).tan();
+    let bar = quad([
+        [-0.05, -tan_y * 2.5, -5.0],
+        [0.05, -tan_y * 2.5, -5.0],
+        [0.05, tan_y * 2.5, -5.0],
+        [-0.05, tan_y * 2.5, -5.0],
+    ]);
+    scene(&dir, bar, [0.0, 0.0, -5.0]);
+    let p = pipeline(
+        &dir,
+        "interaxial = 0.3\nconvergence = 3.0",
+        "[[output]]\nkind = \"wobble-gif\"\npath = \"w.gif\"\nviews = 5\nper_frame = true\npivot = \"Subject\"\n",
+    );
+    let out = dir.join("out");
+    render(&p, &out);
+    let file = std::fs::File::open(out.join("w.gif")).unwrap();
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options.read_info(file).unwrap();
+    // The bar's brightest column in each frame of the GIF (5 views, bounce: 8 frames).
+    let mut columns = Vec::new();
+    while let Some(frame) = decoder.read_next_frame().unwrap() {
+        let row = (H as usize / 2) * W as usize * 4;
+        let brightest = (0..W as usize)
+            .max_by_key(|&x| {
+                let px = &frame.buffer[row + 4 * x..row + 4 * x + 3];
+                px.iter().map(|&c| c as u32).sum::<u32>()
+            })
+            .unwrap();
+        columns.push(brightest);
+    }
+    assert_eq!(columns.len(), 8);
+    let spread = columns.iter().max().unwrap() - columns.iter().min().unwrap();
+    // Without the pivot the bar moves 0.3 * (1/3 - 1/5) * 80 / tan_x = 3.7 px across the views.
+    assert!(spread <= 1, "the pivot node moves: {columns:?}");
+}
+
+#[test]
+fn comfort_keys_with_bad_values_are_refused_at_their_line() {
+    let dir = scratch("comfort-bad");
+    scene(&dir, square(2.0, -0.3, 0.3), [0.0, 0.0, -4.0]);
+    let exr = "[[output]]\nkind = \"exr\"\npath = \"f.exr\"\n";
+    for (stereo, line, says) in [
+        (
+            "convergence = \"near\"",
+            8,
+            "expected a number of metres or \"auto\"",
+        ),
+        ("subject = \"Nobody\"", 8, "no node named \"Nobody\""),
+        (
+            "rig = \"parallel\"\nconvergence = \"auto\"",
+            9,
+            "converges at infinity",
+        ),
+        (
+            "rig = \"mono\"\nfloating_window = \"auto\"",
+            8,
+            "no parallax",
+        ),
+        ("budget_front = 0", 8, "budget_front"),
+        ("screen_width = -3", 8, "screen_width"),
+    ] {
+        let p = pipeline(&dir, stereo, exr);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .arg("check")
+            .arg(&p)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{stereo}: {err}");
+        assert!(err.contains(&format!("p.toml:{line}:")), "{stereo}: {err}");
+        assert!(err.contains(says), "{stereo}: {err}");
+    }
+}
+
+#[test]
+fn check_depth_prints_what_the_render_logs() {
+    let dir = scratch("comfort-check");
+    scene(&dir, square(2.0, -0.3, 0.3), [0.0, 0.0, -4.0]);
+    let p = pipeline(
+        &dir,
+        "interaxial = \"auto\"\nconvergence = 3.5",
+        "[[output]]\nkind = \"exr\"\npath = \"f.exr\"\n",
+    );
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["check", "--depth"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    render(&p, &dir.join("out"));
+    let row = &log(&dir.join("out"))[0];
+    let frame_line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("0 "))
+        .unwrap();
+    let ia = format!("{:.4}", number(row, "interaxial_m"));
+    assert!(frame_line.contains(&ia), "{frame_line} vs {ia}");
+    assert!(text.contains("depth: parallax"), "{text}");
+}
