@@ -4,8 +4,7 @@
 
 mod common;
 
-use base64::Engine as _;
-use common::{ffmpeg, missing_tool, scratch};
+use common::{ffmpeg, missing_tool, position_buffers, quad, scratch};
 use glam::{Mat4, Vec3};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -16,11 +15,6 @@ const YFOV: f32 = 0.8;
 const W: u32 = 160;
 const H: u32 = 90;
 
-/// Two triangles per quad, corners in order around it.
-fn quad(c: [[f32; 3]; 4]) -> Vec<[f32; 3]> {
-    vec![c[0], c[1], c[2], c[0], c[2], c[3]]
-}
-
 /// A scene seen from the origin looking down -Z: a wall at depth 6 filling the view, a square
 /// `near` in front of it, and a node "Subject" at `subject` (no mesh of its own).
 fn scene(dir: &Path, near: Vec<[f32; 3]>, subject: [f32; 3]) -> PathBuf {
@@ -30,24 +24,10 @@ fn scene(dir: &Path, near: Vec<[f32; 3]>, subject: [f32; 3]) -> PathBuf {
         [20.0, 20.0, -6.0],
         [-20.0, 20.0, -6.0],
     ]);
-    let mut bytes = Vec::new();
-    let (mut views, mut accessors, mut primitives) = (Vec::new(), Vec::new(), Vec::new());
-    for (k, positions) in [wall, near].iter().enumerate() {
-        let offset = bytes.len();
-        bytes.extend(positions.iter().flatten().flat_map(|f| f.to_le_bytes()));
-        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-        for p in positions {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12}));
-        accessors.push(json!({"bufferView": k, "componentType": 5126,
-            "count": positions.len(), "type": "VEC3", "min": lo, "max": hi}));
-        primitives.push(json!({"attributes": {"POSITION": k}}));
-    }
-    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let (views, accessors, buffers) = position_buffers(&[&wall, &near]);
+    let primitives: Vec<_> = (0..2)
+        .map(|k| json!({"attributes": {"POSITION": k}}))
+        .collect();
     let g = json!({
         "asset": {"version": "2.0"},
         "scene": 0,
@@ -61,8 +41,7 @@ fn scene(dir: &Path, near: Vec<[f32; 3]>, subject: [f32; 3]) -> PathBuf {
         "meshes": [{"primitives": primitives}],
         "accessors": accessors,
         "bufferViews": views,
-        "buffers": [{"byteLength": bytes.len(),
-            "uri": format!("data:application/octet-stream;base64,{data}")}]
+        "buffers": buffers
     });
     std::fs::create_dir_all(dir).unwrap();
     let path = dir.join("scene.gltf");

@@ -7,8 +7,7 @@
 
 mod common;
 
-use base64::Engine;
-use common::{reference_dirs, reference_pipeline, repo, scratch};
+use common::{position_buffers, quad, reference_dirs, reference_pipeline, repo, scratch};
 use serde_json::json;
 use std::path::Path;
 use stereotrace::compare::{Comparison, Planes, Thresholds, Verdict, compare};
@@ -143,11 +142,6 @@ fn reprojection_passes_every_mitsuba_reference_on_both_eyes() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Two triangles per quad, corners in order around it.
-fn quad(c: [[f32; 3]; 4]) -> Vec<[f32; 3]> {
-    vec![c[0], c[1], c[2], c[0], c[2], c[3]]
-}
-
 /// The scene built to break reuse, seen from (0, 0, 5) looking down -Z: a chequered wall at depth
 /// 6 (two materials), twelve bars two pixels wide at depth 2 (they shift 9 pixels against the
 /// wall between the eyes, so each hides a different strip of wall from each eye), a mirror at
@@ -191,26 +185,13 @@ fn breaker_scene(dir: &Path) -> std::path::PathBuf {
         ]),
         3,
     ));
-    let mut bytes = Vec::new();
-    let (mut views, mut accessors, mut primitives) = (Vec::new(), Vec::new(), Vec::new());
-    for (k, (positions, material)) in parts.iter().enumerate() {
-        let offset = bytes.len();
-        bytes.extend(positions.iter().flatten().flat_map(|f| f.to_le_bytes()));
-        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-        for p in positions {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12}));
-        accessors.push(
-            json!({"bufferView": k, "componentType": 5126, "count": positions.len(),
-            "type": "VEC3", "min": lo, "max": hi}),
-        );
-        primitives.push(json!({"attributes": {"POSITION": k}, "material": material}));
-    }
-    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let positions: Vec<&[[f32; 3]]> = parts.iter().map(|(p, _)| p.as_slice()).collect();
+    let (views, accessors, buffers) = position_buffers(&positions);
+    let primitives: Vec<_> = parts
+        .iter()
+        .enumerate()
+        .map(|(k, (_, material))| json!({"attributes": {"POSITION": k}, "material": material}))
+        .collect();
     let material = |name: &str, color: [f32; 3], metallic: f32, roughness: f32| {
         json!({"name": name, "pbrMetallicRoughness": {"baseColorFactor": [color[0], color[1], color[2], 1.0],
             "metallicFactor": metallic, "roughnessFactor": roughness}})
@@ -236,8 +217,7 @@ fn breaker_scene(dir: &Path) -> std::path::PathBuf {
         ],
         "accessors": accessors,
         "bufferViews": views,
-        "buffers": [{"byteLength": bytes.len(),
-            "uri": format!("data:application/octet-stream;base64,{data}")}]
+        "buffers": buffers
     });
     let scene = dir.join("breaker.gltf");
     std::fs::write(&scene, serde_json::to_string(&g).unwrap()).unwrap();

@@ -66,14 +66,30 @@ struct Prober<'p> {
 
 impl Prober<'_> {
     fn probe(&mut self, frame: u32) -> FrameProbe {
-        let posed = self
-            .p
-            .scene
-            .pose_at(&self.animations, frame as f32 / self.p.spec.frames.fps);
-        let (accel, _) = self.updater.update(&posed);
-        let bounds = self.range_bounds.or_else(|| posed.geometry.bounds());
-        frame_probe(self.p, &posed, bounds, &accel)
+        probe_posed(
+            self.p,
+            &self.animations,
+            &mut self.updater,
+            self.range_bounds,
+            frame,
+        )
     }
+}
+
+/// Poses `frame`, brings `updater`'s structures up to date and probes it.
+fn probe_posed(
+    p: &LoadedPipeline,
+    animations: &[&Animation],
+    updater: &mut Updater,
+    range_bounds: Option<(Vec3, Vec3)>,
+    frame: u32,
+) -> FrameProbe {
+    let posed = p
+        .scene
+        .pose_at(animations, frame as f32 / p.spec.frames.fps);
+    let (accel, _) = updater.update(&posed);
+    let bounds = range_bounds.or_else(|| posed.geometry.bounds());
+    frame_probe(p, &posed, bounds, &accel)
 }
 
 /// The planner's rig for `frame`: probing other frames through the prober when the rig is
@@ -225,14 +241,10 @@ impl<'p> FrameTracer<'p> {
     /// The rig `frame` will be traced with, and its depth budget, without tracing it (`check
     /// --depth`); `None` for a mono rig.
     pub fn plan(&mut self, frame: u32) -> Option<FrameRig> {
-        let p = self.p;
-        let posed = p
-            .scene
-            .pose_at(&self.animations, frame as f32 / p.spec.frames.fps);
-        let (accel, _) = self.updater.update(&posed);
-        let bounds = self.range_bounds.or_else(|| posed.geometry.bounds());
+        let (p, animations, range_bounds) = (self.p, &self.animations, self.range_bounds);
+        let updater = &mut self.updater;
         plan_rig(&mut self.planner, &mut self.prober, frame, || {
-            frame_probe(p, &posed, bounds, &accel)
+            probe_posed(p, animations, updater, range_bounds, frame)
         })
     }
 

@@ -188,3 +188,37 @@ pub fn files_under(dir: &Path) -> Vec<PathBuf> {
     }
     out
 }
+
+/// Two triangles per quad, corners in order around it.
+pub fn quad(c: [[f32; 3]; 4]) -> Vec<[f32; 3]> {
+    vec![c[0], c[1], c[2], c[0], c[2], c[3]]
+}
+
+/// Triangle soups as one embedded glTF buffer: part k gets buffer view k and a POSITION
+/// accessor k with its bounds. Returns the `bufferViews`, `accessors` and `buffers` arrays.
+pub fn position_buffers(
+    parts: &[&[[f32; 3]]],
+) -> (serde_json::Value, serde_json::Value, serde_json::Value) {
+    use base64::Engine as _;
+    use serde_json::json;
+    let mut bytes = Vec::new();
+    let (mut views, mut accessors) = (Vec::new(), Vec::new());
+    for (k, positions) in parts.iter().enumerate() {
+        let offset = bytes.len();
+        bytes.extend(positions.iter().flatten().flat_map(|f| f.to_le_bytes()));
+        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for p in positions.iter() {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12}));
+        accessors.push(json!({"bufferView": k, "componentType": 5126,
+            "count": positions.len(), "type": "VEC3", "min": lo, "max": hi}));
+    }
+    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    let buffers = json!([{"byteLength": bytes.len(),
+        "uri": format!("data:application/octet-stream;base64,{data}")}]);
+    (json!(views), json!(accessors), buffers)
+}
