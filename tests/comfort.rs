@@ -416,3 +416,45 @@ fn check_depth_prints_what_the_render_logs() {
     assert!(frame_line.contains(&ia), "{frame_line} vs {ia}");
     assert!(text.contains("depth: parallax"), "{text}");
 }
+
+#[test]
+fn automatic_rigs_are_the_same_for_a_frame_rendered_alone_and_at_any_thread_count() {
+    let dir = scratch("comfort-alone");
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = common::repo().join("scenes/whitted_animated.gltf");
+    let p = dir.join("p.toml");
+    std::fs::write(
+        &p,
+        format!(
+            "[scene]\npath = {:?}\n[render]\nwidth = 64\nheight = 36\nspp = 1\n\
+             [stereo]\ninteraxial = \"auto\"\nconvergence = \"auto\"\nsubject = \"glass sphere\"\n\
+             floating_window = \"auto\"\nsmoothing = 3\n[frames]\nstart = 0\nend = 15\n\
+             [[output]]\nkind = \"side-by-side\"\npath = \"f_{{frame:04}}.png\"\n",
+            scene.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .args(["render", "--quiet", "--out"])
+            .arg(dir.join(out))
+            .args(extra)
+            .arg(&p)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run("all", &["--threads", "2"]);
+    run("alone", &["--frames", "7..8", "--threads", "1"]);
+    for f in ["f_0007.png", "f_0008.png"] {
+        let a = std::fs::read(dir.join("all").join(f)).unwrap();
+        let b = std::fs::read(dir.join("alone").join(f)).unwrap();
+        assert!(a == b, "{f} differs when rendered alone");
+    }
+    let rows = log(&dir.join("all"));
+    let convergence: Vec<f32> = rows.iter().map(|r| number(r, "convergence_m")).collect();
+    assert!(
+        convergence.windows(2).any(|w| w[0] != w[1]),
+        "the subject moves: the convergence follows it"
+    );
+}
