@@ -157,7 +157,13 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
         t,
         "\n[stereo]\nrig = \"off-axis\"         # \"off-axis\" | \"parallel\" | \"toe-in\" | \"mono\"\n\
          interaxial = {:.4}      # metres; a thirtieth of the distance to the nearest point ({nearest:.3} m)\n\
-         convergence = {centre:.3}      # metres to the zero-parallax plane: here the scene's centre",
+         convergence = {centre:.3}      # metres to the zero-parallax plane: here the scene's centre\n\
+         # interaxial = \"auto\"     # the largest interaxial within the depth budget below\n\
+         # convergence = \"auto\"    # the subject's depth, or the median depth at the frame's centre\n\
+         # subject = \"NODE\"        # a node \"auto\" convergence holds at zero parallax\n\
+         # budget_front = 1.0      # parallax allowed in front of the screen, % of the width\n\
+         # budget_behind = 2.0     # and behind it (check --depth shows every frame's)\n\
+         # floating_window = \"auto\" # black borders where near objects cross the frame edges",
         nearest * INTERAXIAL_PER_DISTANCE
     );
     let _ = writeln!(
