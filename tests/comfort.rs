@@ -458,3 +458,51 @@ fn automatic_rigs_are_the_same_for_a_frame_rendered_alone_and_at_any_thread_coun
         "the subject moves: the convergence follows it"
     );
 }
+
+#[test]
+fn the_rendered_eyes_show_the_parallax_the_frame_log_reports() {
+    // The square alone on a black background, 64 samples per pixel: the coverage of the pixel
+    // its left edge crosses places that edge to a fraction of a pixel in each eye.
+    let dir = scratch("comfort-measured");
+    scene(&dir, square(2.0, -0.3, 0.3), [0.0, 0.0, -4.0]);
+    let g = std::fs::read_to_string(dir.join("scene.gltf")).unwrap();
+    let mut g: serde_json::Value = serde_json::from_str(&g).unwrap();
+    g["meshes"][0]["primitives"]
+        .as_array_mut()
+        .unwrap()
+        .remove(0);
+    std::fs::write(dir.join("scene.gltf"), g.to_string()).unwrap();
+    let p = pipeline(
+        &dir,
+        "interaxial = 0.08\nconvergence = 3.5",
+        "[[output]]\nkind = \"exr\"\npath = \"f_{eye}.exr\"\nviews = \"separate\"\n",
+    );
+    let text = std::fs::read_to_string(&p)
+        .unwrap()
+        .replace("spp = 1", "spp = 64");
+    std::fs::write(&p, text).unwrap();
+    let out = dir.join("out");
+    render(&p, &out);
+    let edge = |eye: &str| -> f64 {
+        let planes = &read_planes(&out.join(format!("f_{eye}.exr"))).unwrap()[0].1;
+        let at = |x: usize, y: usize| planes.data[1][y * planes.width + x] as f64;
+        // Rows in the middle third of the square's height.
+        let rows: Vec<usize> = (H as usize * 2 / 5..H as usize * 3 / 5).collect();
+        let sum: f64 = rows
+            .iter()
+            .map(|&y| {
+                let first = (0..W as usize).find(|&x| at(x, y) > 0.0).unwrap();
+                let coverage = at(first, y) / at(first + 2, y);
+                (first + 1) as f64 - coverage
+            })
+            .sum();
+        sum / rows.len() as f64
+    };
+    let measured = edge("right") - edge("left");
+    let logged = number(&log(&out)[0], "near_parallax_px") as f64;
+    eprintln!("parallax measured in the images {measured:.4} px, logged {logged:.4} px");
+    assert!(
+        (measured - logged).abs() < 0.05,
+        "measured {measured:.4} px in the images, logged {logged:.4} px"
+    );
+}
