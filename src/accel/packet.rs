@@ -208,7 +208,18 @@ impl KdTree {
                     continue;
                 }
                 tally.leaf();
-                for &p in &self.prim_refs[nd.leaf_range()] {
+                // As in the single walk: the node the walk resumes at and the leaf's triangles
+                // come in together, while the leaf is tested.
+                if sp > 0 {
+                    // SAFETY: every entry below `sp` was written by a push above.
+                    let next = unsafe { stack[sp - 1].assume_init_ref() }.0;
+                    prefetch(&self.nodes[next as usize]);
+                }
+                let refs = &self.prim_refs[nd.leaf_range()];
+                for &p in refs {
+                    prefetch(&self.triangles[p as usize]);
+                }
+                for &p in refs {
                     let tri = &self.triangles[p as usize];
                     let lanes = mailbox.untested(p, active);
                     if lanes == 0 {

@@ -132,6 +132,11 @@ impl LeafWalk for KdTree {
             }
             let n = self.nodes[node];
             if n.is_leaf() {
+                if sp > 0 {
+                    // The node the walk resumes at comes in while the leaf is tested.
+                    // SAFETY: every entry below `sp` was written by a push below.
+                    prefetch(&self.nodes[unsafe { stack[sp - 1].assume_init_ref() }.0 as usize]);
+                }
                 if visit.leaf(&self.prim_refs[n.leaf_range()]) || sp == 0 {
                     break;
                 }
@@ -243,6 +248,11 @@ impl<T: Tally, const ANY: bool> Visit for LeafTests<'_, T, ANY> {
     #[inline]
     fn leaf(&mut self, prims: &[u32]) -> bool {
         self.tally.leaf();
+        // Every triangle of the leaf is asked for before the first is tested, so their cache
+        // misses overlap instead of following one another.
+        for &p in prims {
+            prefetch(&self.triangles[p as usize]);
+        }
         for &p in prims {
             if self.mailbox.seen(p) {
                 continue;
