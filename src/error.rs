@@ -41,6 +41,10 @@ pub enum Error {
     /// them. Not the input's fault: the farm has work left (status 1).
     #[error("{message}")]
     Incomplete { message: String },
+    /// The GPU backend cannot run here: no adapter, a device lost, or a scene larger than the
+    /// adapter's limits. Not the input's fault (status 1).
+    #[error("GPU: {message}")]
+    Device { message: String },
     /// A broken invariant of the program, never the user's input.
     #[error("internal error (a bug in stereotrace, please report it): {0}")]
     Internal(String),
@@ -76,7 +80,7 @@ impl Error {
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Interrupted { .. } => 130,
-            Error::Incomplete { .. } => 1,
+            Error::Incomplete { .. } | Error::Device { .. } => 1,
             // A missing file, or a folder where a file is expected, is the user's input.
             Error::Io { source, .. }
                 if !matches!(

@@ -7,6 +7,8 @@ pub mod accel;
 pub mod bench;
 pub mod compare;
 pub mod error;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod info;
 pub mod output;
 mod paths;

@@ -69,6 +69,12 @@ impl Node {
         (self.b >> 2) as usize
     }
 
+    /// The node's two words as laid out in memory (see the type's documentation), for walkers
+    /// that read the tree elsewhere (the GPU's).
+    pub fn words(&self) -> [u32; 2] {
+        [self.a, self.b]
+    }
+
     #[inline]
     pub fn leaf_range(&self) -> std::ops::Range<usize> {
         let first = self.a as usize;
@@ -83,6 +89,15 @@ pub struct KdTree {
     pub(super) bounds: Aabb,
     pub params: BuildParams,
     pub build_seconds: f64,
+}
+
+/// A kd-tree's arrays: nodes in depth-first order, the leaves' references into `triangles`,
+/// and the box the root covers.
+pub struct TreeArrays<'a> {
+    pub nodes: &'a [Node],
+    pub prim_refs: &'a [u32],
+    pub triangles: &'a [[Vec3; 3]],
+    pub bounds: Aabb,
 }
 
 /// Hard cap so the traversal stack (one entry per level) has a fixed size.
@@ -110,6 +125,16 @@ impl KdTree {
 
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The tree's arrays as they are, for a walker elsewhere (the GPU's) to upload.
+    pub fn arrays(&self) -> TreeArrays<'_> {
+        TreeArrays {
+            nodes: &self.nodes,
+            prim_refs: &self.prim_refs,
+            triangles: &self.triangles,
+            bounds: self.bounds,
+        }
     }
 
     pub fn triangle_count(&self) -> usize {

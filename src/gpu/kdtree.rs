@@ -1,0 +1,422 @@
+//! The CPU's kd-tree on the GPU: its arrays uploaded as they are (`accel::TreeArrays`), rays in a
+//! storage buffer, one compute invocation per ray (`kdtree.wgsl`), hits read back. Closest hit
+//! and any hit, each with three published GPU walks (`GpuWalk`).
+
+use super::device::Gpu;
+use crate::accel::{Hit, KdTree, MAX_DEPTH, Ray};
+use crate::error::{Error, Result};
+use bytemuck::{Pod, Zeroable};
+use std::time::Instant;
+use wgpu::util::DeviceExt;
+
+/// How a ray walks the tree on the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GpuWalk {
+    /// A per-ray stack as deep as the tree: the CPU walk, node for node.
+    Stack,
+    /// Horn et al.'s short stack (2007): a few entries, and a restart from the root when they
+    /// run out.
+    Short,
+    /// Foley and Sugerman's kd-restart (2005): no stack; every leaf exit restarts at the root.
+    Restart,
+}
+
+/// The full stack: one entry per level of the depth cap, as the CPU walk's (`traverse.rs`).
+const FULL_STACK: u32 = MAX_DEPTH + 4;
+/// The short stack's entries. Horn et al. keep "a few"; four keeps a ray's stack at 48 bytes.
+/// Not tuned on a card (none was at hand when it was written).
+const SHORT_STACK: u32 = 4;
+/// Rays per dispatch, so that no single dispatch runs for long enough to trip a driver's
+/// watchdog (a second or two on desktop systems) on a large scene: 2^18 rays at a few Mrays/s.
+const DISPATCH_RAYS: usize = 1 << 18;
+/// Invocations per workgroup, as `@workgroup_size` in `kdtree.wgsl`.
+const WORKGROUP: usize = 64;
+
+impl GpuWalk {
+    pub const ALL: [GpuWalk; 3] = [GpuWalk::Stack, GpuWalk::Short, GpuWalk::Restart];
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            GpuWalk::Stack => "stack",
+            GpuWalk::Short => "short-stack",
+            GpuWalk::Restart => "kd-restart",
+        }
+    }
+
+    fn stack_entries(&self) -> u32 {
+        match self {
+            GpuWalk::Stack => FULL_STACK,
+            GpuWalk::Short => SHORT_STACK,
+            GpuWalk::Restart => 0,
+        }
+    }
+}
+
+/// A ray as the shader reads it (32 bytes, `Ray` in `kdtree.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuRay {
+    origin: [f32; 3],
+    t_max: f32,
+    dir: [f32; 3],
+    pad: f32,
+}
+
+/// A hit as the shader writes it (`HitOut`); `prim == u32::MAX` is none.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuHit {
+    t: f32,
+    prim: u32,
+    b1: f32,
+    b2: f32,
+}
+
+/// One dispatch's range of rays and the scene box (`Params`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Params {
+    bounds_min: [f32; 3],
+    first: u32,
+    bounds_max: [f32; 3],
+    count: u32,
+}
+
+/// A kd-tree resident on the GPU.
+pub struct GpuTree {
+    nodes: wgpu::Buffer,
+    prim_refs: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    bounds: Option<([f32; 3], [f32; 3])>,
+    /// Bytes uploaded.
+    pub bytes: u64,
+}
+
+/// Runs `make` inside an error scope, so that running out of memory or a limit the adapter
+/// refuses comes back as an error instead of wgpu's default of panicking.
+fn checked<T>(gpu: &Gpu, what: &str, make: impl FnOnce() -> T) -> Result<T> {
+    let memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let value = make();
+    let invalid = pollster::block_on(validation.pop());
+    let out_of_memory = pollster::block_on(memory.pop());
+    match invalid.or(out_of_memory) {
+        Some(e) => Err(Error::Device {
+            message: format!("{}: {what}: {e}", gpu.info.name),
+        }),
+        None => Ok(value),
+    }
+}
+
+/// A storage buffer holding `bytes` (at least 4, since a binding may not be empty), after
+/// checking it against the adapter's limits.
+fn storage(gpu: &Gpu, what: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
+    let limit = gpu
+        .limits
+        .max_storage_buffer_binding_size
+        .min(gpu.limits.max_buffer_size);
+    if bytes.len() as u64 > limit {
+        return Err(Error::Device {
+            message: format!(
+                "{what} need {:.1} MiB, more than the {:.1} MiB {} binds in one buffer; render \
+                 this scene with the CPU backend",
+                bytes.len() as f64 / 1048576.0,
+                limit as f64 / 1048576.0,
+                gpu.info.name
+            ),
+        });
+    }
+    let padded;
+    let contents = if bytes.is_empty() {
+        padded = [0u8; 4];
+        &padded[..]
+    } else {
+        bytes
+    };
+    checked(gpu, what, || {
+        gpu.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(what),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+            })
+    })
+}
+
+impl GpuTree {
+    /// Uploads the tree's arrays unchanged: the shader decodes the CPU's node words.
+    pub fn upload(gpu: &Gpu, tree: &KdTree) -> Result<GpuTree> {
+        let a = tree.arrays();
+        let nodes: Vec<[u32; 2]> = a.nodes.iter().map(|n| n.words()).collect();
+        let triangles: Vec<[f32; 9]> = a
+            .triangles
+            .iter()
+            .map(|t| {
+                let [p, q, r] = t.map(|v| v.to_array());
+                [p[0], p[1], p[2], q[0], q[1], q[2], r[0], r[1], r[2]]
+            })
+            .collect();
+        let none = wgpu::BufferUsages::empty();
+        let nodes = storage(
+            gpu,
+            "the kd-tree's nodes",
+            bytemuck::cast_slice(&nodes),
+            none,
+        )?;
+        let prim_refs = storage(
+            gpu,
+            "the kd-tree's leaf references",
+            bytemuck::cast_slice(a.prim_refs),
+            none,
+        )?;
+        let triangles = storage(gpu, "the triangles", bytemuck::cast_slice(&triangles), none)?;
+        let bytes = nodes.size() + prim_refs.size() + triangles.size();
+        Ok(GpuTree {
+            nodes,
+            prim_refs,
+            triangles,
+            bounds: (!a.bounds.is_empty() && !a.nodes.is_empty())
+                .then(|| (a.bounds.min.to_array(), a.bounds.max.to_array())),
+            bytes,
+        })
+    }
+}
+
+/// A batch of rays resident on the GPU, with room for their hits.
+pub struct GpuRays {
+    rays: wgpu::Buffer,
+    hits: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    count: usize,
+}
+
+impl GpuRays {
+    pub fn upload(gpu: &Gpu, rays: &[Ray], t_max: &[f32]) -> Result<GpuRays> {
+        assert_eq!(rays.len(), t_max.len(), "one limit per ray");
+        let packed: Vec<GpuRay> = rays
+            .iter()
+            .zip(t_max)
+            .map(|(r, &t)| GpuRay {
+                origin: r.origin.to_array(),
+                t_max: t,
+                dir: r.dir.to_array(),
+                pad: 0.0,
+            })
+            .collect();
+        let none = wgpu::BufferUsages::empty();
+        let ray_buf = storage(gpu, "the rays", bytemuck::cast_slice(&packed), none)?;
+        let blank = vec![GpuHit::zeroed(); rays.len()];
+        let hits = storage(
+            gpu,
+            "the hits",
+            bytemuck::cast_slice(&blank),
+            wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        )?;
+        let readback = checked(gpu, "the hits' read-back buffer", || {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hits read back"),
+                size: hits.size(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        })?;
+        Ok(GpuRays {
+            rays: ray_buf,
+            hits,
+            readback,
+            count: rays.len(),
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// The compiled walks: one pipeline per walk and query (closest hit, any hit).
+pub struct GpuTracer {
+    pipelines: Vec<(GpuWalk, bool, wgpu::ComputePipeline)>,
+}
+
+fn wait(gpu: &Gpu) -> Result<()> {
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map(|_| ())
+        .map_err(|e| Error::Device {
+            message: format!("{}: waiting for the GPU failed: {e}", gpu.info.name),
+        })
+}
+
+impl GpuTracer {
+    pub fn new(gpu: &Gpu) -> Result<GpuTracer> {
+        let mut pipelines = Vec::new();
+        for walk in GpuWalk::ALL {
+            let source = include_str!("kdtree.wgsl")
+                .replace("__STACK_CAP__", &walk.stack_entries().to_string())
+                .replace("__FULL_STACK__", &FULL_STACK.to_string());
+            let module = checked(gpu, "compiling the kd-tree shader", || {
+                gpu.device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some(walk.name()),
+                        source: wgpu::ShaderSource::Wgsl(source.into()),
+                    })
+            })?;
+            for any in [false, true] {
+                let constants = [("ANY_HIT", if any { 1.0 } else { 0.0 })];
+                let pipeline = checked(gpu, "building the kd-tree pipeline", || {
+                    gpu.device
+                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                            label: Some(walk.name()),
+                            layout: None,
+                            module: &module,
+                            entry_point: Some("main"),
+                            compilation_options: wgpu::PipelineCompilationOptions {
+                                constants: &constants,
+                                ..Default::default()
+                            },
+                            cache: None,
+                        })
+                })?;
+                pipelines.push((walk, any, pipeline));
+            }
+        }
+        Ok(GpuTracer { pipelines })
+    }
+
+    /// Walks every ray of `rays` through `tree` (closest hit, or any hit with `any`) and waits
+    /// for the GPU; the seconds from submission to completion. The hits stay on the GPU until
+    /// `read_hits`.
+    pub fn trace(
+        &self,
+        gpu: &Gpu,
+        tree: &GpuTree,
+        rays: &GpuRays,
+        walk: GpuWalk,
+        any: bool,
+    ) -> Result<f64> {
+        let Some((lo, hi)) = tree.bounds else {
+            // Nothing to hit: the hits buffer still says so.
+            let blank = vec![
+                GpuHit {
+                    t: 0.0,
+                    prim: u32::MAX,
+                    b1: 0.0,
+                    b2: 0.0
+                };
+                rays.count
+            ];
+            gpu.queue
+                .write_buffer(&rays.hits, 0, bytemuck::cast_slice(&blank));
+            return Ok(0.0);
+        };
+        let pipeline = self
+            .pipelines
+            .iter()
+            .find(|(w, a, _)| *w == walk && *a == any)
+            .map(|(.., p)| p)
+            .expect("a pipeline per walk and query");
+        let layout = pipeline.get_bind_group_layout(0);
+        // One uniform and bind group per dispatch; all dispatches go in one submission.
+        let groups: Vec<(wgpu::BindGroup, u32)> = (0..rays.count)
+            .step_by(DISPATCH_RAYS)
+            .map(|first| {
+                let count = DISPATCH_RAYS.min(rays.count - first);
+                let params = Params {
+                    bounds_min: lo,
+                    first: first as u32,
+                    bounds_max: hi,
+                    count: count as u32,
+                };
+                let uniform = gpu
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("dispatch"),
+                        contents: bytemuck::bytes_of(&params),
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    });
+                let entries = [
+                    &tree.nodes,
+                    &tree.prim_refs,
+                    &tree.triangles,
+                    &rays.rays,
+                    &rays.hits,
+                    &uniform,
+                ]
+                .into_iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect::<Vec<_>>();
+                let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("kd-tree walk"),
+                    layout: &layout,
+                    entries: &entries,
+                });
+                (group, count.div_ceil(WORKGROUP) as u32)
+            })
+            .collect();
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(pipeline);
+            for (group, workgroups) in &groups {
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(*workgroups, 1, 1);
+            }
+        }
+        let start = Instant::now();
+        gpu.queue.submit([encoder.finish()]);
+        wait(gpu)?;
+        Ok(start.elapsed().as_secs_f64())
+    }
+
+    /// The hits of the last `trace` of `rays`.
+    pub fn read_hits(&self, gpu: &Gpu, rays: &GpuRays) -> Result<Vec<Option<Hit>>> {
+        if rays.count == 0 {
+            return Ok(Vec::new());
+        }
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        encoder.copy_buffer_to_buffer(&rays.hits, 0, &rays.readback, 0, rays.hits.size());
+        gpu.queue.submit([encoder.finish()]);
+        let slice = rays.readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        wait(gpu)?;
+        let failed = |e: String| Error::Device {
+            message: format!("{}: reading the hits back failed: {e}", gpu.info.name),
+        };
+        rx.recv()
+            .map_err(|e| failed(e.to_string()))?
+            .map_err(|e| failed(e.to_string()))?;
+        let hits = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| failed(e.to_string()))?;
+            let raw: &[GpuHit] = bytemuck::cast_slice(&view[..rays.count * 16]);
+            raw.iter()
+                .map(|h| {
+                    (h.prim != u32::MAX).then_some(Hit {
+                        t: h.t,
+                        prim: h.prim,
+                        b1: h.b1,
+                        b2: h.b2,
+                    })
+                })
+                .collect()
+        };
+        rays.readback.unmap();
+        Ok(hits)
+    }
+}

@@ -1,0 +1,331 @@
+// kd-tree traversal on the GPU: one invocation per ray, the CPU's tree bit for bit (accel/tree.rs:
+// 8-byte nodes in depth-first order, the below child right after its parent), the CPU's
+// watertight triangle test (accel/triangle.rs). Three walks, chosen by `STACK_CAP` when the host
+// builds the pipeline (it writes the constant into this source, since WGSL sizes a private array
+// only by a constant expression):
+// - a full per-ray stack (`STACK_CAP` >= the depth cap): the CPU walk, step for step;
+// - a short stack (Horn et al., "Interactive k-D Tree GPU Raytracing", I3D 2007): a ring of
+//   `STACK_CAP` entries that forgets its oldest entry when full, and a restart from the root
+//   over what is left of the ray when it runs dry;
+// - kd-restart (Foley and Sugerman, "KD-Tree Acceleration Structures for a GPU Raytracer",
+//   Graphics Hardware 2005): `STACK_CAP` = 0, every leaf exit restarts from the root.
+// Restarts follow a restart trail (below), so all three find the CPU's hits.
+
+const STACK_CAP: u32 = __STACK_CAP__u;
+// A ring this long never forgets: it is the CPU walk's stack, one entry per level of the depth cap.
+const FULL_STACK: u32 = __FULL_STACK__u;
+// At least one entry, so the array is valid WGSL when `STACK_CAP` is 0 (kd-restart never uses it).
+const STACK_LEN: u32 = max(STACK_CAP, 1u);
+// Set by the host per pipeline: any hit (shadow rays) or closest hit.
+override ANY_HIT: bool = false;
+
+struct Ray {
+    origin: vec3<f32>,
+    t_max: f32,
+    dir: vec3<f32>,
+    pad: f32,
+}
+
+// `prim` = 0xffffffff: no hit (or, for any hit, not occluded).
+struct HitOut {
+    t: f32,
+    prim: u32,
+    b1: f32,
+    b2: f32,
+}
+
+struct Params {
+    bounds_min: vec3<f32>,
+    first: u32,
+    bounds_max: vec3<f32>,
+    count: u32,
+}
+
+struct Entry {
+    node: u32,
+    t_min: f32,
+    t_far: f32,
+}
+
+@group(0) @binding(0) var<storage, read> nodes: array<vec2<u32>>;
+@group(0) @binding(1) var<storage, read> prim_refs: array<u32>;
+@group(0) @binding(2) var<storage, read> tris: array<f32>;
+@group(0) @binding(3) var<storage, read> rays: array<Ray>;
+@group(0) @binding(4) var<storage, read_write> hits: array<HitOut>;
+@group(0) @binding(5) var<uniform> params: Params;
+
+const NO_PRIM: u32 = 0xffffffffu;
+
+// The shear of the watertight test (Woop, Benthin and Wald 2013), as `RayPre::new` builds it.
+struct Shear {
+    k: vec3<u32>,
+    s: vec3<f32>,
+}
+
+fn shear_of(d: vec3<f32>) -> Shear {
+    let a = abs(d);
+    var kz = 2u;
+    if a.x >= a.y && a.x >= a.z {
+        kz = 0u;
+    } else if a.y >= a.z {
+        kz = 1u;
+    }
+    var kx = (kz + 1u) % 3u;
+    var ky = (kz + 2u) % 3u;
+    if d[kz] < 0.0 {
+        let t = kx;
+        kx = ky;
+        ky = t;
+    }
+    var sh: Shear;
+    sh.k = vec3<u32>(kx, ky, kz);
+    sh.s = vec3<f32>(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+    return sh;
+}
+
+fn vertex(i: u32) -> vec3<f32> {
+    return vec3<f32>(tris[3u * i], tris[3u * i + 1u], tris[3u * i + 2u]);
+}
+
+// The vertex relative to the origin, sheared so the ray runs along +z.
+fn sheared(v: vec3<f32>, o: vec3<f32>, sh: Shear) -> vec3<f32> {
+    let r = v - o;
+    let z = r[sh.k.z];
+    return vec3<f32>(r[sh.k.x] - sh.s.x * z, r[sh.k.y] - sh.s.y * z, sh.s.z * z);
+}
+
+// `a d - b c` to within about an ulp (Kahan's algorithm with fused multiply-adds), where the
+// CPU recomputes an edge function that came out exactly zero in f64 (WGSL has no f64).
+fn det2(a: f32, d: f32, b: f32, c: f32) -> f32 {
+    let bc = b * c;
+    let err = fma(-b, c, bc);
+    return fma(a, d, -bc) + err;
+}
+
+// (t, b1, b2) of a hit with 0 < t < t_max, or t < 0 for none.
+fn intersect(prim: u32, o: vec3<f32>, sh: Shear, t_max: f32) -> vec3<f32> {
+    let a = sheared(vertex(3u * prim), o, sh);
+    let b = sheared(vertex(3u * prim + 1u), o, sh);
+    let c = sheared(vertex(3u * prim + 2u), o, sh);
+    var u = c.x * b.y - c.y * b.x;
+    var v = a.x * c.y - a.y * c.x;
+    var w = b.x * a.y - b.y * a.x;
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        u = det2(c.x, b.y, c.y, b.x);
+        v = det2(a.x, c.y, a.y, c.x);
+        w = det2(b.x, a.y, b.y, a.x);
+    }
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return vec3<f32>(-1.0, 0.0, 0.0);
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return vec3<f32>(-1.0, 0.0, 0.0);
+    }
+    let t_scaled = u * a.z + v * b.z + w * c.z;
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    if !(t > 0.0 && t < t_max) {
+        return vec3<f32>(-1.0, 0.0, 0.0);
+    }
+    return vec3<f32>(t, v * inv_det, w * inv_det);
+}
+
+// The restart trail (Laine, "Restart Trail for Stackless BVH Traversal", HPG 2010), here for the
+// kd-tree: bit L (of 64, in two words) is set when the walk's node at depth L has no second child
+// left to visit. With it a restart descends to exactly the node the CPU's stack would pop, so
+// the short stack and kd-restart visit the CPU walk's nodes in its order, zero-length cells
+// (a ray crossing two planes at one point, or lying in one) included.
+const NONE: u32 = 0xffffffffu;
+
+fn has_bit(trail: vec2<u32>, level: u32) -> bool {
+    if level < 32u {
+        return (trail.x & (1u << level)) != 0u;
+    }
+    return (trail.y & (1u << (level - 32u))) != 0u;
+}
+
+fn with_bit(trail: vec2<u32>, level: u32) -> vec2<u32> {
+    if level < 32u {
+        return vec2<u32>(trail.x | (1u << level), trail.y);
+    }
+    return vec2<u32>(trail.x, trail.y | (1u << (level - 32u)));
+}
+
+// Bits 0..n-1 of a word, for n in 0..=32.
+fn low_bits(n: u32) -> u32 {
+    return select((1u << n) - 1u, 0xffffffffu, n >= 32u);
+}
+
+// The deepest level above `depth` whose bit is clear, or NONE.
+fn deepest_pending(trail: vec2<u32>, depth: u32) -> u32 {
+    let open = ~trail & vec2<u32>(low_bits(depth), low_bits(max(depth, 32u) - 32u));
+    if open.y != 0u {
+        return 32u + firstLeadingBit(open.y);
+    }
+    if open.x != 0u {
+        return firstLeadingBit(open.x);
+    }
+    return NONE;
+}
+
+// Marks `level` done and forgets every deeper level: the walk goes on at that level's second child.
+fn advance(trail: vec2<u32>, level: u32) -> vec2<u32> {
+    let kept = trail & vec2<u32>(low_bits(level + 1u), low_bits(max(level + 1u, 32u) - 32u));
+    return with_bit(kept, level);
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.count {
+        return;
+    }
+    let index = params.first + gid.x;
+    let ray = rays[index];
+    var out: HitOut;
+    out.t = ray.t_max;
+    out.prim = NO_PRIM;
+    out.b1 = 0.0;
+    out.b2 = 0.0;
+    let o = ray.origin;
+    let d = ray.dir;
+    let inv_d = vec3<f32>(1.0) / d;
+    // The ray's interval inside the scene box (`Aabb::clip`): slabs per axis, a zero component
+    // inside its slab leaves the interval as it is.
+    var t_enter = 0.0;
+    var t_exit = ray.t_max;
+    for (var axis = 0u; axis < 3u; axis++) {
+        let lo = params.bounds_min[axis];
+        let hi = params.bounds_max[axis];
+        if d[axis] == 0.0 {
+            if o[axis] < lo || o[axis] > hi {
+                t_exit = -1.0;
+            }
+        } else {
+            let near = (lo - o[axis]) * inv_d[axis];
+            let far = (hi - o[axis]) * inv_d[axis];
+            t_enter = max(t_enter, min(near, far));
+            t_exit = min(t_exit, max(near, far));
+        }
+    }
+    if arrayLength(&nodes) == 0u || !(t_enter <= t_exit) {
+        hits[index] = out;
+        return;
+    }
+    let sh = shear_of(d);
+    var best = ray.t_max;
+    var stack: array<Entry, STACK_LEN>;
+    // The ring's newest entry is at `top - 1` (modulo its length); `size` entries are held.
+    var top = 0u;
+    var size = 0u;
+    var node = 0u;
+    var depth = 0u;
+    var trail = vec2<u32>(0u, 0u);
+    var t_min = t_enter;
+    var t_far = t_exit;
+    loop {
+        if best < t_min {
+            break;
+        }
+        let n = nodes[node];
+        if (n.y & 3u) == 3u {
+            let first = n.x;
+            let end = first + (n.y >> 2u);
+            var done = false;
+            for (var i = first; i < end; i++) {
+                let p = prim_refs[i];
+                let h = intersect(p, o, sh, best);
+                if h.x > 0.0 {
+                    best = h.x;
+                    out.t = h.x;
+                    out.prim = p;
+                    out.b1 = h.y;
+                    out.b2 = h.z;
+                    if ANY_HIT {
+                        done = true;
+                        break;
+                    }
+                }
+            }
+            if done {
+                break;
+            }
+            // The deepest level whose second child is still to visit; none left ends the walk.
+            let level = deepest_pending(trail, depth);
+            if level == NONE {
+                break;
+            }
+            trail = advance(trail, level);
+            depth = level + 1u;
+            if size > 0u {
+                // The newest entry is that level's second child (the ring forgets the oldest,
+                // shallowest entries first).
+                top = (top + STACK_LEN - 1u) % STACK_LEN;
+                size -= 1u;
+                let e = stack[top];
+                node = e.node;
+                t_min = e.t_min;
+                t_far = e.t_far;
+            } else {
+                // Restart: the trail steers the walk back down to that child.
+                node = 0u;
+                depth = 0u;
+                t_min = t_enter;
+                t_far = t_exit;
+            }
+            continue;
+        }
+        let axis = n.y & 3u;
+        let split = bitcast<f32>(n.x);
+        let below = node + 1u;
+        let above = node + (n.y >> 2u);
+        let oa = o[axis];
+        let da = d[axis];
+        var first = above;
+        var second = below;
+        if oa < split || (oa == split && da <= 0.0) {
+            first = below;
+            second = above;
+        }
+        // The CPU walk's cases: one child, or both (the second from `t_second` on).
+        var both = false;
+        var t_second = t_min;
+        var t_first_far = t_far;
+        if da == 0.0 {
+            // The ray lies in the split plane: triangles in it may sit on either side.
+            both = oa == split;
+            node = first;
+        } else {
+            let t_plane = (split - oa) * inv_d[axis];
+            if t_plane > t_far || t_plane <= 0.0 {
+                node = first;
+            } else if t_plane < t_min {
+                node = second;
+            } else {
+                both = true;
+                t_second = t_plane;
+                t_first_far = t_plane;
+            }
+        }
+        if both {
+            if has_bit(trail, depth) {
+                // Back after a restart: the first child is done.
+                node = second;
+                t_min = t_second;
+            } else {
+                if STACK_CAP > 0u {
+                    stack[top] = Entry(second, t_second, t_far);
+                    top = (top + 1u) % STACK_LEN;
+                    size = min(size + 1u, STACK_CAP);
+                }
+                node = first;
+                t_far = t_first_far;
+            }
+        } else {
+            // Nothing waits at this level.
+            trail = with_bit(trail, depth);
+        }
+        depth += 1u;
+    }
+    hits[index] = out;
+}

@@ -1,0 +1,214 @@
+//! The GPU backend against the CPU on the same kd-tree: every GPU walk (full stack, short stack,
+//! kd-restart) must find the CPU's closest hits and occlusion. Runs on whatever adapter the
+//! machine has; in CI that is Mesa's software Vulkan driver (lavapipe). A machine with no adapter
+//! fails these tests, or skips them out loud with STEREOTRACE_SKIP_GPU=1.
+
+mod common;
+
+#[cfg(not(feature = "gpu"))]
+#[test]
+fn the_gpu_backend_is_built_and_checked() {
+    common::missing_tool(
+        "the GPU backend (the suite runs with `--features gpu`: scripts/test.sh)",
+        "STEREOTRACE_SKIP_GPU",
+    );
+}
+
+#[cfg(feature = "gpu")]
+mod on_gpu {
+    use glam::Vec3;
+    use stereotrace::accel::{BuildParams, Hit, Intersect, KdTree, Ray, SplitMethod};
+    use stereotrace::gpu::{Gpu, GpuRays, GpuTracer, GpuTree, GpuWalk};
+
+    fn gpu() -> Option<Gpu> {
+        match Gpu::open() {
+            Ok(g) => {
+                eprintln!("adapter: {}", g.describe());
+                Some(g)
+            }
+            Err(e) => {
+                eprintln!("{e}");
+                super::common::missing_tool(
+                    "a GPU adapter (without a card: Debian's mesa-vulkan-drivers)",
+                    "STEREOTRACE_SKIP_GPU",
+                );
+                None
+            }
+        }
+    }
+
+    struct Rng(u64);
+    impl Rng {
+        fn f(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 40) as f32) / (1u64 << 24) as f32
+        }
+        fn v(&mut self, s: f32) -> Vec3 {
+            Vec3::new(self.f(), self.f(), self.f()) * s
+        }
+    }
+
+    /// A random soup and an axis-aligned grid whose triangles lie on split candidates.
+    fn scene(rng: &mut Rng) -> Vec<[Vec3; 3]> {
+        let mut tris: Vec<[Vec3; 3]> = (0..3000)
+            .map(|_| {
+                let c = rng.v(10.0);
+                [c, c + rng.v(1.0) - 0.5, c + rng.v(1.0) - 0.5]
+            })
+            .collect();
+        for i in 0..8 {
+            for j in 0..8 {
+                let (x, y) = (i as f32, j as f32);
+                tris.push([
+                    Vec3::new(x, y, 0.0),
+                    Vec3::new(x + 1.0, y, 0.0),
+                    Vec3::new(x, y + 1.0, 0.0),
+                ]);
+                tris.push([
+                    Vec3::new(x, 0.0, y),
+                    Vec3::new(x, 1.0, y),
+                    Vec3::new(x, 0.0, y + 1.0),
+                ]);
+            }
+        }
+        tris
+    }
+
+    /// A pinhole's fan, random rays, and (with `on_planes`) rays starting on and running along
+    /// the grid's planes, some with zero direction components.
+    fn rays(rng: &mut Rng, on_planes: bool) -> Vec<Ray> {
+        let mut rays = Vec::new();
+        let eye = Vec3::new(5.0, 5.0, -8.0);
+        for y in 0..48 {
+            for x in 0..48 {
+                let d = Vec3::new(x as f32 / 48.0 - 0.5, y as f32 / 48.0 - 0.5, 1.0);
+                rays.push(Ray::new(eye, d));
+            }
+        }
+        for _ in 0..3000 {
+            rays.push(Ray::new(rng.v(14.0) - 2.0, rng.v(2.0) - 1.0));
+        }
+        if on_planes {
+            for i in 0..400 {
+                let f = i as f32 * 0.02;
+                rays.push(Ray::new(Vec3::new(f, 0.5, 5.0), Vec3::NEG_Z));
+                rays.push(Ray::new(Vec3::new(f, 0.0, 0.5), Vec3::Y));
+                rays.push(Ray::new(Vec3::new(2.0, f, -1.0), Vec3::new(0.3, 0.01, 1.0)));
+            }
+        }
+        rays
+    }
+
+    /// The GPU's hit is the CPU's: the same triangle at a distance within a few ulps (the GPU
+    /// may fuse a multiply and an add where the CPU rounds twice), or, where rounding moved a ray
+    /// across a shared edge, an adjacent triangle at the same distance.
+    fn agree(cpu: Option<Hit>, gpu: Option<Hit>) -> bool {
+        match (cpu, gpu) {
+            (None, None) => true,
+            (Some(c), Some(g)) => (c.t - g.t).abs() <= 1e-5 * c.t.abs().max(1e-3),
+            _ => false,
+        }
+    }
+
+    fn check(gpu: &Gpu, tracer: &GpuTracer, tris: Vec<[Vec3; 3]>, rays: &[Ray], walks: &[GpuWalk]) {
+        let tree = KdTree::build(tris, BuildParams::with_method(SplitMethod::Sah));
+        let on_gpu = GpuTree::upload(gpu, &tree).unwrap();
+        // Every third ray stops short, so limits are checked too.
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 3 == 0 { 9.0 } else { f32::INFINITY })
+            .collect();
+        let batch = GpuRays::upload(gpu, rays, &t_max).unwrap();
+        let mut found = 0;
+        for &walk in walks {
+            tracer.trace(gpu, &on_gpu, &batch, walk, false).unwrap();
+            let closest = tracer.read_hits(gpu, &batch).unwrap();
+            tracer.trace(gpu, &on_gpu, &batch, walk, true).unwrap();
+            let any = tracer.read_hits(gpu, &batch).unwrap();
+            let (mut differ, mut same_prim) = (Vec::new(), 0);
+            for (i, r) in rays.iter().enumerate() {
+                let cpu = tree.closest_hit(r, t_max[i]);
+                let occluded = tree.any_hit(r, t_max[i]);
+                if !agree(cpu, closest[i]) || any[i].is_some() != occluded {
+                    differ.push(format!(
+                        "ray {i} {r:?}: GPU {:?} / {:?}, CPU {cpu:?} / {occluded}",
+                        closest[i], any[i]
+                    ));
+                }
+                same_prim += (cpu.map(|h| h.prim) == closest[i].map(|h| h.prim)) as usize;
+                if let Some(h) = any[i] {
+                    assert!(h.t > 0.0 && h.t < t_max[i], "{walk:?} ray {i}: {h:?}");
+                }
+                found += cpu.is_some() as usize;
+            }
+            eprintln!(
+                "{walk:?}: {} of {} rays differ from the CPU, {same_prim} hit its triangle",
+                differ.len(),
+                rays.len()
+            );
+            // Every walk visits the CPU walk's nodes in its order (restarts follow the trail).
+            assert!(
+                differ.is_empty(),
+                "{walk:?}: {} rays differ from the CPU, first: {}",
+                differ.len(),
+                differ[0]
+            );
+            // Distinct triangles at one distance only where a ray meets a shared edge.
+            assert!(
+                same_prim * 1000 >= rays.len() * 999,
+                "{walk:?}: {same_prim} of {} rays hit the CPU's triangle",
+                rays.len()
+            );
+        }
+        assert!(
+            found > rays.len() / 4,
+            "the rays must hit something: {found}"
+        );
+    }
+
+    #[test]
+    fn every_gpu_walk_finds_the_cpu_hits() {
+        let Some(gpu) = gpu() else { return };
+        let tracer = GpuTracer::new(&gpu).unwrap();
+        let mut rng = Rng(7);
+        let tris = scene(&mut rng);
+        check(
+            &gpu,
+            &tracer,
+            tris.clone(),
+            &rays(&mut rng, false),
+            &GpuWalk::ALL,
+        );
+    }
+
+    /// Rays lying in a split plane visit both sides on the CPU; every GPU walk does the same.
+    #[test]
+    fn rays_lying_in_split_planes_visit_both_sides() {
+        let Some(gpu) = gpu() else { return };
+        let tracer = GpuTracer::new(&gpu).unwrap();
+        let mut rng = Rng(9);
+        let tris = scene(&mut rng);
+        check(&gpu, &tracer, tris, &rays(&mut rng, true), &GpuWalk::ALL);
+    }
+
+    #[test]
+    fn an_empty_scene_and_no_rays() {
+        let Some(gpu) = gpu() else { return };
+        let tracer = GpuTracer::new(&gpu).unwrap();
+        let empty = KdTree::build(Vec::new(), BuildParams::default());
+        let on_gpu = GpuTree::upload(&gpu, &empty).unwrap();
+        let r = [Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z)];
+        let batch = GpuRays::upload(&gpu, &r, &[f32::INFINITY]).unwrap();
+        tracer
+            .trace(&gpu, &on_gpu, &batch, GpuWalk::Short, false)
+            .unwrap();
+        assert_eq!(tracer.read_hits(&gpu, &batch).unwrap(), vec![None]);
+        let none = GpuRays::upload(&gpu, &[], &[]).unwrap();
+        tracer
+            .trace(&gpu, &on_gpu, &none, GpuWalk::Stack, true)
+            .unwrap();
+        assert!(tracer.read_hits(&gpu, &none).unwrap().is_empty());
+    }
+}
