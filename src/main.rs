@@ -179,8 +179,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
         }
         Command::Bench(BenchCommand::Accel { options, threads }) => {
             out!("{}", accel::csv_header());
-            let rows = thread_pool(threads)?
-                .install(|| accel::bench_accel(&options, |row| out!("{}", row.csv())))?;
+            let rows = thread_pool(threads)?.install(|| {
+                accel::bench_accel(
+                    &options,
+                    |row| out!("{}", row.csv()),
+                    |line| note!("{line}"),
+                )
+            })?;
             if let Some(stem) = &options.chart {
                 accel::chart(&rows, stem)?;
             }

@@ -211,4 +211,85 @@ mod on_gpu {
             .unwrap();
         assert!(tracer.read_hits(&gpu, &none).unwrap().is_empty());
     }
+
+    fn bench(args: &[&str], adapter: Option<&str>) -> std::process::Output {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_stereotrace"));
+        c.args(["bench", "accel"]).args(args);
+        if let Some(a) = adapter {
+            c.env(stereotrace::gpu::ADAPTER_VAR, a);
+        }
+        c.output().unwrap()
+    }
+
+    /// `bench accel --backend cpu,gpu`: a row per GPU walk next to the CPU's, the adapter named,
+    /// and the same hits (count, mean distance, occluded count) as the CPU rows of the run.
+    #[test]
+    fn bench_accel_reports_the_gpu_walks_next_to_the_cpu() {
+        let Some(_) = gpu() else { return };
+        let out = bench(
+            &[
+                "generated:20000",
+                "--split",
+                "sah",
+                "--backend",
+                "cpu,gpu",
+                "--repeat",
+                "1",
+                "--film",
+                "96",
+                "--threads",
+                "2",
+            ],
+            None,
+        );
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr),
+        );
+        assert!(out.status.success(), "{stderr}");
+        assert!(stderr.contains("GPU adapter: "), "{stderr}");
+        let mut lines = stdout.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+        let rows: Vec<Vec<String>> = lines
+            .map(|l| {
+                // The device column is quoted (adapter names hold commas).
+                let (plain, device) = l.split_once(",\"").unwrap_or((l, ""));
+                let mut f: Vec<String> = plain.split(',').map(String::from).collect();
+                f.push(device.trim_end_matches('"').to_string());
+                f
+            })
+            .collect();
+        let row = |method: &str| {
+            rows.iter()
+                .find(|r| r[1] == method)
+                .unwrap_or_else(|| panic!("no {method} row in\n{stdout}"))
+        };
+        let cpu = row("sah");
+        for walk in ["stack", "short-stack", "kd-restart"] {
+            let g = row(&format!("sah+gpu-{walk}"));
+            assert!(!g[col("device")].is_empty(), "{walk}: no adapter named");
+            for c in ["primary_hits", "shadow_occluded", "nodes"] {
+                assert_eq!(g[col(c)], cpu[col(c)], "{walk}: {c}");
+            }
+            let mean = |r: &Vec<String>| r[col("mean_t")].parse::<f64>().unwrap();
+            assert!((mean(g) - mean(cpu)).abs() <= 1e-5 * mean(cpu), "{walk}: mean_t");
+            assert!(g[col("primary_mrays_s")].parse::<f64>().unwrap() > 0.0);
+        }
+    }
+
+    /// An adapter named that the machine lacks is an error naming it, never a quiet fallback.
+    #[test]
+    fn a_named_adapter_that_is_not_there_is_an_error() {
+        let out = bench(
+            &["generated:2000", "--split", "sah", "--backend", "gpu", "--film", "16"],
+            Some("no-such-adapter"),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("no adapter matches STEREOTRACE_GPU_ADAPTER=\"no-such-adapter\""),
+            "{stderr}"
+        );
+    }
 }

@@ -70,6 +70,16 @@ pub struct AccelBenchOptions {
         default_value = "single"
     )]
     pub walks: Vec<Walk>,
+    /// Where kd-tree rows trace: `cpu` and/or `gpu` (built with the `gpu` cargo feature: the same
+    /// tree walked on the GPU with a full stack, a short stack and kd-restart, rows
+    /// `METHOD+gpu-WALK` with the adapter in the `device` column).
+    #[arg(
+        long = "backend",
+        value_enum,
+        value_delimiter = ',',
+        default_value = "cpu"
+    )]
+    pub backends: Vec<Backend>,
     /// Write the table as CSV.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -95,6 +105,13 @@ pub struct AccelBenchOptions {
     /// Pareto front per scene).
     #[arg(long)]
     pub chart: Option<PathBuf>,
+}
+
+/// Which processor walks the kd-tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    Cpu,
+    Gpu,
 }
 
 /// How `bench accel` hands rays to a kd-tree.
@@ -271,10 +288,23 @@ fn walk_work(tree: &KdTree, rays: &RaySet, any: bool, walk: Walk) -> [f64; 3] {
 }
 
 /// Runs the accel benchmark; one row per (scene, method).
+///
+/// `progress` gets each row as it is measured, `log` what else the run has to say (the GPU
+/// adapter).
 pub fn bench_accel(
     opts: &AccelBenchOptions,
     mut progress: impl FnMut(&AccelRow),
+    #[cfg_attr(not(feature = "gpu"), allow(unused_mut, unused_variables))] mut log: impl FnMut(String),
 ) -> Result<Vec<AccelRow>> {
+    let on_gpu = opts.backends.contains(&Backend::Gpu);
+    #[cfg(not(feature = "gpu"))]
+    if on_gpu {
+        return Err(Error::input(
+            Path::new("--backend"),
+            "this stereotrace was built without the GPU backend: cargo build --release --features gpu",
+        ));
+    }
+    let on_cpu = opts.backends.contains(&Backend::Cpu);
     let threads = rayon::current_num_threads();
     let repeat = opts.repeat.max(1);
     let mut rows = Vec::new();
@@ -303,10 +333,32 @@ pub fn bench_accel(
             methods.push(AccelMethod::BruteForce);
         }
         let (primary, shadow) = (RaySet::new(&primary), RaySet::new(&shadow));
+        #[cfg(feature = "gpu")]
+        let gpu_bench = on_gpu
+            .then(|| {
+                super::accel_gpu::GpuBench::new(
+                    (&primary.rays, &primary.t_max),
+                    (&shadow.rays, &shadow.t_max),
+                    &mut log,
+                )
+            })
+            .transpose()?;
         for method in methods {
             let walks = match method {
-                AccelMethod::Split(_) => opts.walks.clone(),
+                AccelMethod::Split(_) if on_cpu => opts.walks.clone(),
+                AccelMethod::Split(_) => Vec::new(),
                 _ => vec![Walk::Single],
+            };
+            #[cfg(feature = "gpu")]
+            let mut gpu_runs = match (&gpu_bench, method) {
+                (Some(g), AccelMethod::Split(_)) => g.runs(&AccelRow {
+                    scene: name.clone(),
+                    method: method.name().into(),
+                    triangles: tris.len(),
+                    threads,
+                    ..Default::default()
+                }),
+                _ => Vec::new(),
             };
             let mut runs: Vec<WalkRun> = walks
                 .iter()
@@ -350,6 +402,15 @@ pub fn bench_accel(
                                 row.shadow_work = Some(walk_work(&tree, &shadow, true, walk));
                             }
                         }
+                        #[cfg(feature = "gpu")]
+                        if let Some(g) = &gpu_bench {
+                            g.measure(&tree, opts.trace_repeat, &mut gpu_runs)?;
+                            for run in &mut gpu_runs {
+                                run.row.sah_cost = Some(st.sah_cost);
+                                run.row.nodes = Some(st.nodes);
+                                run.row.bytes = Some(st.bytes);
+                            }
+                        }
                         Box::new(tree)
                     }
                     AccelMethod::BruteForce => {
@@ -380,6 +441,17 @@ pub fn bench_accel(
                     }
                 }
             }
+            #[cfg(feature = "gpu")]
+            runs.extend(gpu_runs.into_iter().map(|g| {
+                let found = |(hits, sum_t)| Found { hits, sum_t };
+                (
+                    g.row,
+                    g.primary_s,
+                    g.shadow_s,
+                    found(g.primary_found),
+                    found(g.shadow_found),
+                )
+            }));
             for (mut row, prim_t, shadow_t, primary_found, shadow_found) in runs {
                 row.build_s = median(&builds);
                 row.build_ns_per_triangle = row.build_s * 1e9 / tris.len().max(1) as f64;

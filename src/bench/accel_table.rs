@@ -31,10 +31,12 @@ pub struct AccelRow {
     pub primary_work: Option<[f64; 3]>,
     /// The same per shadow ray.
     pub shadow_work: Option<[f64; 3]>,
+    /// The GPU adapter that traced the row (GPU rows only; CPU rows ran on `threads` threads).
+    pub device: Option<String>,
 }
 
-/// The table's columns. Tables written before the last nine existed still read back.
-pub const COLUMNS: [&str; 23] = [
+/// The table's columns. Tables written before the last ten existed still read back.
+pub const COLUMNS: [&str; 24] = [
     "scene",
     "method",
     "triangles",
@@ -58,6 +60,7 @@ pub const COLUMNS: [&str; 23] = [
     "shadow_inner_per_ray",
     "shadow_leaves_per_ray",
     "shadow_tests_per_ray",
+    "device",
 ];
 
 /// Columns every table has had.
@@ -91,6 +94,7 @@ impl AccelRow {
                 f.push(opt(work.map(|w| format!("{:.2}", w[k]))));
             }
         }
+        f.push(opt(self.device.clone()));
         f
     }
 
@@ -183,6 +187,7 @@ pub fn read_table(path: &Path) -> Result<Vec<AccelRow>> {
                 shadow_occluded: opt(16).map(|v| v as u64),
                 primary_work: work(17),
                 shadow_work: work(20),
+                device: f.get(23).filter(|v| !v.is_empty()).cloned(),
             })
         })
         .collect()
@@ -215,6 +220,17 @@ mod tests {
                 shadow_occluded: Some(20600),
                 primary_work: Some([41.5, 6.25, 18.0]),
                 shadow_work: Some([30.0, 5.5, 21.75]),
+                device: None,
+            },
+            AccelRow {
+                scene: "bunny".into(),
+                method: "sah+gpu-stack".into(),
+                triangles: 948,
+                threads: 2,
+                primary_mrays_s: 1.25,
+                primary_hits: Some(91234),
+                device: Some("llvmpipe (LLVM 15.0.6, 256 bits)".into()),
+                ..Default::default()
             },
             AccelRow {
                 scene: "bunny".into(),
@@ -232,10 +248,14 @@ mod tests {
             .collect();
         std::fs::write(&path, text.join("\n")).unwrap();
         let back = read_table(&path).unwrap();
-        assert_eq!(back.len(), 2);
+        assert_eq!(back.len(), 3);
         for (a, b) in rows.iter().zip(&back) {
             assert_eq!(a.csv(), b.csv());
         }
+        assert_eq!(
+            back[1].device.as_deref(),
+            Some("llvmpipe (LLVM 15.0.6, 256 bits)")
+        );
         // A table from before the walk columns existed reads back with them empty.
         let old = "scene,method,triangles,threads,build_s,build_ns_per_triangle,primary_mrays_s,shadow_mrays_s,sah_cost,nodes,leaves,max_depth,refs_per_triangle,bytes\nb,sah,9,2,0.1,1.0,2.0,3.0,4.0,5,6,7,8.0,9\n";
         std::fs::write(&path, old).unwrap();

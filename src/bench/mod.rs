@@ -7,6 +7,8 @@
 //! - `memory`: the peak-heap counter the sweep reports.
 
 pub mod accel;
+#[cfg(feature = "gpu")]
+mod accel_gpu;
 mod accel_table;
 mod chart;
 pub mod memory;
