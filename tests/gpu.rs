@@ -222,7 +222,8 @@ mod on_gpu {
     }
 
     /// `bench accel --backend cpu,gpu`: a row per GPU walk next to the CPU's, the adapter named,
-    /// and the same hits (count, mean distance, occluded count) as the CPU rows of the run.
+    /// the same hits (count, mean distance, occluded count) as the CPU rows of the run, and the
+    /// work counters that say how the walks differ.
     #[test]
     fn bench_accel_reports_the_gpu_walks_next_to_the_cpu() {
         let Some(_) = gpu() else { return };
@@ -272,8 +273,22 @@ mod on_gpu {
             for c in ["primary_hits", "shadow_occluded", "nodes"] {
                 assert_eq!(g[col(c)], cpu[col(c)], "{walk}: {c}");
             }
+            // Every walk reaches the CPU walk's leaves; the full stack visits exactly its inner
+            // nodes too, the restarting walks more (the path back down from the root).
+            for c in ["primary_leaves_per_ray", "shadow_leaves_per_ray"] {
+                assert_eq!(g[col(c)], cpu[col(c)], "{walk}: {c}");
+            }
+            let inner = |r: &Vec<String>| r[col("shadow_inner_per_ray")].parse::<f64>().unwrap();
+            if walk == "stack" {
+                assert_eq!(inner(g), inner(cpu), "stack: inner nodes");
+            } else {
+                assert!(inner(g) >= inner(cpu), "{walk}: inner nodes");
+            }
             let mean = |r: &Vec<String>| r[col("mean_t")].parse::<f64>().unwrap();
-            assert!((mean(g) - mean(cpu)).abs() <= 1e-5 * mean(cpu), "{walk}: mean_t");
+            assert!(
+                (mean(g) - mean(cpu)).abs() <= 1e-5 * mean(cpu),
+                "{walk}: mean_t"
+            );
             assert!(g[col("primary_mrays_s")].parse::<f64>().unwrap() > 0.0);
         }
     }
@@ -282,7 +297,15 @@ mod on_gpu {
     #[test]
     fn a_named_adapter_that_is_not_there_is_an_error() {
         let out = bench(
-            &["generated:2000", "--split", "sah", "--backend", "gpu", "--film", "16"],
+            &[
+                "generated:2000",
+                "--split",
+                "sah",
+                "--backend",
+                "gpu",
+                "--film",
+                "16",
+            ],
             Some("no-such-adapter"),
         );
         let stderr = String::from_utf8_lossy(&out.stderr);

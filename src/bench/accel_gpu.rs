@@ -1,6 +1,7 @@
 //! `bench accel --backend gpu`: the kd-tree each repeat builds, uploaded and walked on the GPU
 //! with each published walk, on the same rays as the CPU rows of the same run. Rows are
-//! `METHOD+gpu-WALK` with the adapter in the `device` column.
+//! `METHOD+gpu-WALK` with the adapter in the `device` column, and the walk's work per ray (inner
+//! nodes, leaves, triangle tests) from an untimed counted pass.
 
 use super::accel_table::AccelRow;
 use crate::accel::{Hit, KdTree, Ray};
@@ -80,6 +81,13 @@ impl GpuBench {
     /// Uploads `tree` and times every walk `repeat` times on both ray sets, into `runs`.
     pub fn measure(&self, tree: &KdTree, repeat: u32, runs: &mut [GpuRun]) -> Result<()> {
         let on_gpu = GpuTree::upload(&self.gpu, tree)?;
+        for (run, &walk) in runs.iter_mut().zip(&GpuWalk::ALL) {
+            if run.row.primary_work.is_none() {
+                let (t, g) = (&self.tracer, &self.gpu);
+                run.row.primary_work = Some(t.work(g, &on_gpu, &self.primary, walk, false)?);
+                run.row.shadow_work = Some(t.work(g, &on_gpu, &self.shadow, walk, true)?);
+            }
+        }
         for _ in 0..repeat.max(1) {
             for (run, &walk) in runs.iter_mut().zip(&GpuWalk::ALL) {
                 let t = self

@@ -182,12 +182,27 @@ impl GpuTree {
     }
 }
 
-/// A batch of rays resident on the GPU, with room for their hits.
+/// A batch of rays resident on the GPU, with room for their hits and for the work counts of a
+/// counted walk (three per workgroup).
 pub struct GpuRays {
     rays: wgpu::Buffer,
     hits: wgpu::Buffer,
     readback: wgpu::Buffer,
+    work: wgpu::Buffer,
+    work_readback: wgpu::Buffer,
     count: usize,
+}
+
+/// A buffer the host reads back after copying into it.
+fn readback(gpu: &Gpu, what: &str, size: u64) -> Result<wgpu::Buffer> {
+    checked(gpu, what, || {
+        gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(what),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    })
 }
 
 impl GpuRays {
@@ -212,18 +227,21 @@ impl GpuRays {
             bytemuck::cast_slice(&blank),
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         )?;
-        let readback = checked(gpu, "the hits' read-back buffer", || {
-            gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("hits read back"),
-                size: hits.size(),
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        })?;
+        let hits_back = readback(gpu, "the hits' read-back buffer", hits.size())?;
+        let counters = vec![0u32; 3 * rays.len().div_ceil(WORKGROUP)];
+        let work = storage(
+            gpu,
+            "the work counts",
+            bytemuck::cast_slice(&counters),
+            wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        )?;
+        let work_back = readback(gpu, "the work counts' read-back buffer", work.size())?;
         Ok(GpuRays {
             rays: ray_buf,
             hits,
-            readback,
+            readback: hits_back,
+            work,
+            work_readback: work_back,
             count: rays.len(),
         })
     }
@@ -237,9 +255,16 @@ impl GpuRays {
     }
 }
 
-/// The compiled walks: one pipeline per walk and query (closest hit, any hit).
+/// The compiled walks: one pipeline per walk, query (closest hit, any hit) and counting.
 pub struct GpuTracer {
-    pipelines: Vec<(GpuWalk, bool, wgpu::ComputePipeline)>,
+    pipelines: Vec<(Query, wgpu::ComputePipeline)>,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Query {
+    walk: GpuWalk,
+    any: bool,
+    count: bool,
 }
 
 fn wait(gpu: &Gpu) -> Result<()> {
@@ -265,8 +290,9 @@ impl GpuTracer {
                         source: wgpu::ShaderSource::Wgsl(source.into()),
                     })
             })?;
-            for any in [false, true] {
-                let constants = [("ANY_HIT", if any { 1.0 } else { 0.0 })];
+            for (any, count) in [(false, false), (true, false), (false, true), (true, true)] {
+                let flag = |on: bool| if on { 1.0 } else { 0.0 };
+                let constants = [("ANY_HIT", flag(any)), ("COUNT", flag(count))];
                 let pipeline = checked(gpu, "building the kd-tree pipeline", || {
                     gpu.device
                         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -281,7 +307,7 @@ impl GpuTracer {
                             cache: None,
                         })
                 })?;
-                pipelines.push((walk, any, pipeline));
+                pipelines.push((Query { walk, any, count }, pipeline));
             }
         }
         Ok(GpuTracer { pipelines })
@@ -298,6 +324,45 @@ impl GpuTracer {
         walk: GpuWalk,
         any: bool,
     ) -> Result<f64> {
+        let query = Query {
+            walk,
+            any,
+            count: false,
+        };
+        self.dispatch(gpu, tree, rays, query)
+    }
+
+    /// Per ray: the inner nodes, leaves and triangle tests of the walk (an untimed pass; the
+    /// GPU keeps no mailbox, so a triangle referenced by several leaves is tested in each).
+    pub fn work(
+        &self,
+        gpu: &Gpu,
+        tree: &GpuTree,
+        rays: &GpuRays,
+        walk: GpuWalk,
+        any: bool,
+    ) -> Result<[f64; 3]> {
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        encoder.clear_buffer(&rays.work, 0, None);
+        gpu.queue.submit([encoder.finish()]);
+        let count = true;
+        self.dispatch(gpu, tree, rays, Query { walk, any, count })?;
+        let counts: Vec<u32> = read_back(gpu, &rays.work, &rays.work_readback, |b| {
+            bytemuck::cast_slice(b).to_vec()
+        })?;
+        let mut sums = [0u64; 3];
+        for c in counts.chunks(3) {
+            for k in 0..3 {
+                sums[k] += c[k] as u64;
+            }
+        }
+        let n = rays.count.max(1) as f64;
+        Ok(sums.map(|v| v as f64 / n))
+    }
+
+    fn dispatch(&self, gpu: &Gpu, tree: &GpuTree, rays: &GpuRays, query: Query) -> Result<f64> {
         let Some((lo, hi)) = tree.bounds else {
             // Nothing to hit: the hits buffer still says so.
             let blank = vec![
@@ -316,8 +381,8 @@ impl GpuTracer {
         let pipeline = self
             .pipelines
             .iter()
-            .find(|(w, a, _)| *w == walk && *a == any)
-            .map(|(.., p)| p)
+            .find(|(q, _)| *q == query)
+            .map(|(_, p)| p)
             .expect("a pipeline per walk and query");
         let layout = pipeline.get_bind_group_layout(0);
         // One uniform and bind group per dispatch; all dispatches go in one submission.
@@ -345,6 +410,7 @@ impl GpuTracer {
                     &rays.rays,
                     &rays.hits,
                     &uniform,
+                    &rays.work,
                 ]
                 .into_iter()
                 .enumerate()
@@ -383,28 +449,8 @@ impl GpuTracer {
         if rays.count == 0 {
             return Ok(Vec::new());
         }
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        encoder.copy_buffer_to_buffer(&rays.hits, 0, &rays.readback, 0, rays.hits.size());
-        gpu.queue.submit([encoder.finish()]);
-        let slice = rays.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        wait(gpu)?;
-        let failed = |e: String| Error::Device {
-            message: format!("{}: reading the hits back failed: {e}", gpu.info.name),
-        };
-        rx.recv()
-            .map_err(|e| failed(e.to_string()))?
-            .map_err(|e| failed(e.to_string()))?;
-        let hits = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| failed(e.to_string()))?;
-            let raw: &[GpuHit] = bytemuck::cast_slice(&view[..rays.count * 16]);
+        read_back(gpu, &rays.hits, &rays.readback, |bytes| {
+            let raw: &[GpuHit] = bytemuck::cast_slice(&bytes[..rays.count * 16]);
             raw.iter()
                 .map(|h| {
                     (h.prim != u32::MAX).then_some(Hit {
@@ -415,8 +461,40 @@ impl GpuTracer {
                     })
                 })
                 .collect()
-        };
-        rays.readback.unmap();
-        Ok(hits)
+        })
     }
+}
+
+/// Copies `source` into the mappable `staging` buffer, waits, and decodes its bytes.
+fn read_back<T>(
+    gpu: &Gpu,
+    source: &wgpu::Buffer,
+    staging: &wgpu::Buffer,
+    decode: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    encoder.copy_buffer_to_buffer(source, 0, staging, 0, source.size());
+    gpu.queue.submit([encoder.finish()]);
+    let slice = staging.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    wait(gpu)?;
+    let failed = |e: String| Error::Device {
+        message: format!("{}: reading results back failed: {e}", gpu.info.name),
+    };
+    rx.recv()
+        .map_err(|e| failed(e.to_string()))?
+        .map_err(|e| failed(e.to_string()))?;
+    let value = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| failed(e.to_string()))?;
+        decode(&view)
+    };
+    staging.unmap();
+    Ok(value)
 }

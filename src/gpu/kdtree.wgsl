@@ -16,8 +16,10 @@ const STACK_CAP: u32 = __STACK_CAP__u;
 const FULL_STACK: u32 = __FULL_STACK__u;
 // At least one entry, so the array is valid WGSL when `STACK_CAP` is 0 (kd-restart never uses it).
 const STACK_LEN: u32 = max(STACK_CAP, 1u);
-// Set by the host per pipeline: any hit (shadow rays) or closest hit.
+// Set by the host per pipeline: any hit (shadow rays) or closest hit, and whether to count the
+// walk's work (an untimed pass, as the CPU's counted walk is).
 override ANY_HIT: bool = false;
+override COUNT: bool = false;
 
 struct Ray {
     origin: vec3<f32>,
@@ -53,6 +55,9 @@ struct Entry {
 @group(0) @binding(3) var<storage, read> rays: array<Ray>;
 @group(0) @binding(4) var<storage, read_write> hits: array<HitOut>;
 @group(0) @binding(5) var<uniform> params: Params;
+// Per workgroup of rays: inner nodes visited, leaves visited, triangle tests (summed on the host;
+// one workgroup's counts stay far inside a u32).
+@group(0) @binding(6) var<storage, read_write> work: array<atomic<u32>>;
 
 const NO_PRIM: u32 = 0xffffffffu;
 
@@ -176,7 +181,10 @@ fn advance(trail: vec2<u32>, level: u32) -> vec2<u32> {
 }
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(workgroup_id) group: vec3<u32>,
+) {
     if gid.x >= params.count {
         return;
     }
@@ -223,6 +231,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var trail = vec2<u32>(0u, 0u);
     var t_min = t_enter;
     var t_far = t_exit;
+    var inner = 0u;
+    var leaves = 0u;
+    var tests = 0u;
     loop {
         if best < t_min {
             break;
@@ -232,7 +243,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let first = n.x;
             let end = first + (n.y >> 2u);
             var done = false;
+            leaves += 1u;
             for (var i = first; i < end; i++) {
+                tests += 1u;
                 let p = prim_refs[i];
                 let h = intersect(p, o, sh, best);
                 if h.x > 0.0 {
@@ -275,6 +288,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             continue;
         }
+        inner += 1u;
         let axis = n.y & 3u;
         let split = bitcast<f32>(n.x);
         let below = node + 1u;
@@ -328,4 +342,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         depth += 1u;
     }
     hits[index] = out;
+    if COUNT {
+        let slot = 3u * (params.first / 64u + group.x);
+        atomicAdd(&work[slot], inner);
+        atomicAdd(&work[slot + 1u], leaves);
+        atomicAdd(&work[slot + 2u], tests);
+    }
 }
