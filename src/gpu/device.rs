@@ -30,9 +30,14 @@ impl Gpu {
     /// The preferred adapter (or the one `STEREOTRACE_GPU_ADAPTER` names) with a device asking
     /// for all of its limits; wgpu's defaults would cap a storage binding at 128 MiB.
     pub fn open() -> Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        // Vulkan, Metal and DX12 (`WGPU_BACKEND` narrows them further): the compute shaders
+        // are written for them, and OpenGL (through EGL) is not built in.
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::PRIMARY;
+        let desc = desc.with_env();
+        let backends = desc.backends;
+        let instance = wgpu::Instance::new(desc);
+        let adapters = pollster::block_on(instance.enumerate_adapters(backends));
         let listed: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
         let wanted = std::env::var(ADAPTER_VAR).ok().filter(|v| !v.is_empty());
         let chosen = match &wanted {

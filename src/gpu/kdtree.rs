@@ -280,7 +280,8 @@ impl GpuTracer {
     pub fn new(gpu: &Gpu) -> Result<GpuTracer> {
         let mut pipelines = Vec::new();
         for walk in GpuWalk::ALL {
-            let source = include_str!("kdtree.wgsl")
+            let source = [include_str!("walk.wgsl"), include_str!("rays.wgsl")]
+                .concat()
                 .replace("__STACK_CAP__", &walk.stack_entries().to_string())
                 .replace("__FULL_STACK__", &FULL_STACK.to_string());
             let module = checked(gpu, "compiling the kd-tree shader", || {

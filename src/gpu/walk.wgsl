@@ -16,17 +16,6 @@ const STACK_CAP: u32 = __STACK_CAP__u;
 const FULL_STACK: u32 = __FULL_STACK__u;
 // At least one entry, so the array is valid WGSL when `STACK_CAP` is 0 (kd-restart never uses it).
 const STACK_LEN: u32 = max(STACK_CAP, 1u);
-// Set by the host per pipeline: any hit (shadow rays) or closest hit, and whether to count the
-// walk's work (an untimed pass, as the CPU's counted walk is).
-override ANY_HIT: bool = false;
-override COUNT: bool = false;
-
-struct Ray {
-    origin: vec3<f32>,
-    t_max: f32,
-    dir: vec3<f32>,
-    pad: f32,
-}
 
 // `prim` = 0xffffffff: no hit (or, for any hit, not occluded).
 struct HitOut {
@@ -34,13 +23,6 @@ struct HitOut {
     prim: u32,
     b1: f32,
     b2: f32,
-}
-
-struct Params {
-    bounds_min: vec3<f32>,
-    first: u32,
-    bounds_max: vec3<f32>,
-    count: u32,
 }
 
 struct Entry {
@@ -52,12 +34,6 @@ struct Entry {
 @group(0) @binding(0) var<storage, read> nodes: array<vec2<u32>>;
 @group(0) @binding(1) var<storage, read> prim_refs: array<u32>;
 @group(0) @binding(2) var<storage, read> tris: array<f32>;
-@group(0) @binding(3) var<storage, read> rays: array<Ray>;
-@group(0) @binding(4) var<storage, read_write> hits: array<HitOut>;
-@group(0) @binding(5) var<uniform> params: Params;
-// Per workgroup of rays: inner nodes visited, leaves visited, triangle tests (summed on the host;
-// one workgroup's counts stay far inside a u32).
-@group(0) @binding(6) var<storage, read_write> work: array<atomic<u32>>;
 
 const NO_PRIM: u32 = 0xffffffffu;
 
@@ -180,31 +156,25 @@ fn advance(trail: vec2<u32>, level: u32) -> vec2<u32> {
     return with_bit(kept, level);
 }
 
-@compute @workgroup_size(64)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(workgroup_id) group: vec3<u32>,
-) {
-    if gid.x >= params.count {
-        return;
-    }
-    let index = params.first + gid.x;
-    let ray = rays[index];
+// Inner nodes, leaves and triangle tests of the walks this invocation ran.
+var<private> tally: vec3<u32>;
+
+// The closest hit of the ray `o + t d` with 0 < t < t_max (or, with `any`, the first hit found)
+// in the tree over the box `box_min`..`box_max`; `prim` = NO_PRIM for none.
+fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec3<f32>, any: bool) -> HitOut {
     var out: HitOut;
-    out.t = ray.t_max;
+    out.t = t_max;
     out.prim = NO_PRIM;
     out.b1 = 0.0;
     out.b2 = 0.0;
-    let o = ray.origin;
-    let d = ray.dir;
     let inv_d = vec3<f32>(1.0) / d;
     // The ray's interval inside the scene box (`Aabb::clip`): slabs per axis, a zero component
     // inside its slab leaves the interval as it is.
     var t_enter = 0.0;
-    var t_exit = ray.t_max;
+    var t_exit = t_max;
     for (var axis = 0u; axis < 3u; axis++) {
-        let lo = params.bounds_min[axis];
-        let hi = params.bounds_max[axis];
+        let lo = box_min[axis];
+        let hi = box_max[axis];
         if d[axis] == 0.0 {
             if o[axis] < lo || o[axis] > hi {
                 t_exit = -1.0;
@@ -217,11 +187,10 @@ fn main(
         }
     }
     if arrayLength(&nodes) == 0u || !(t_enter <= t_exit) {
-        hits[index] = out;
-        return;
+        return out;
     }
     let sh = shear_of(d);
-    var best = ray.t_max;
+    var best = t_max;
     var stack: array<Entry, STACK_LEN>;
     // The ring's newest entry is at `top - 1` (modulo its length); `size` entries are held.
     var top = 0u;
@@ -231,9 +200,6 @@ fn main(
     var trail = vec2<u32>(0u, 0u);
     var t_min = t_enter;
     var t_far = t_exit;
-    var inner = 0u;
-    var leaves = 0u;
-    var tests = 0u;
     loop {
         if best < t_min {
             break;
@@ -243,9 +209,9 @@ fn main(
             let first = n.x;
             let end = first + (n.y >> 2u);
             var done = false;
-            leaves += 1u;
+            tally.y += 1u;
             for (var i = first; i < end; i++) {
-                tests += 1u;
+                tally.z += 1u;
                 let p = prim_refs[i];
                 let h = intersect(p, o, sh, best);
                 if h.x > 0.0 {
@@ -254,7 +220,7 @@ fn main(
                     out.prim = p;
                     out.b1 = h.y;
                     out.b2 = h.z;
-                    if ANY_HIT {
+                    if any {
                         done = true;
                         break;
                     }
@@ -288,7 +254,7 @@ fn main(
             }
             continue;
         }
-        inner += 1u;
+        tally.x += 1u;
         let axis = n.y & 3u;
         let split = bitcast<f32>(n.x);
         let below = node + 1u;
@@ -341,11 +307,5 @@ fn main(
         }
         depth += 1u;
     }
-    hits[index] = out;
-    if COUNT {
-        let slot = 3u * (params.first / 64u + group.x);
-        atomicAdd(&work[slot], inner);
-        atomicAdd(&work[slot + 1u], leaves);
-        atomicAdd(&work[slot + 2u], tests);
-    }
+    return out;
 }
