@@ -2,12 +2,13 @@
 //! storage buffer, one compute invocation per ray (`kdtree.wgsl`), hits read back. Closest hit
 //! and any hit, each with three published GPU walks (`GpuWalk`).
 
+use super::buffers::{
+    DISPATCH_RAYS, WORKGROUP, checked, dispatch_rays, read_back, readback, storage,
+};
 use super::device::Gpu;
 use crate::accel::{Hit, KdTree, MAX_DEPTH, Ray};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use bytemuck::{Pod, Zeroable};
-use std::time::Instant;
-use wgpu::util::DeviceExt;
 
 /// How a ray walks the tree on the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -22,16 +23,10 @@ pub enum GpuWalk {
 }
 
 /// The full stack: one entry per level of the depth cap, as the CPU walk's (`traverse.rs`).
-const FULL_STACK: u32 = MAX_DEPTH + 4;
+pub(super) const FULL_STACK: u32 = MAX_DEPTH + 4;
 /// The short stack's entries. Horn et al. keep "a few"; four keeps a ray's stack at 48 bytes.
 /// Not tuned on a card (none was at hand when it was written).
-const SHORT_STACK: u32 = 4;
-/// Rays per dispatch, so that no single dispatch runs for long enough to trip a driver's
-/// watchdog (a second or two on desktop systems) on a large scene: 2^18 rays at a few Mrays/s.
-const DISPATCH_RAYS: usize = 1 << 18;
-/// Invocations per workgroup, as `@workgroup_size` in `kdtree.wgsl`.
-const WORKGROUP: usize = 64;
-
+pub(super) const SHORT_STACK: u32 = 4;
 impl GpuWalk {
     pub const ALL: [GpuWalk; 3] = [GpuWalk::Stack, GpuWalk::Short, GpuWalk::Restart];
 
@@ -55,11 +50,11 @@ impl GpuWalk {
 /// A ray as the shader reads it (32 bytes, `Ray` in `kdtree.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuRay {
-    origin: [f32; 3],
-    t_max: f32,
-    dir: [f32; 3],
-    pad: f32,
+pub(super) struct GpuRay {
+    pub origin: [f32; 3],
+    pub t_max: f32,
+    pub dir: [f32; 3],
+    pub pad: f32,
 }
 
 /// A hit as the shader writes it (`HitOut`); `prim == u32::MAX` is none.
@@ -84,63 +79,13 @@ struct Params {
 
 /// A kd-tree resident on the GPU.
 pub struct GpuTree {
-    nodes: wgpu::Buffer,
-    prim_refs: wgpu::Buffer,
-    triangles: wgpu::Buffer,
-    bounds: Option<([f32; 3], [f32; 3])>,
+    pub(super) nodes: wgpu::Buffer,
+    pub(super) prim_refs: wgpu::Buffer,
+    pub(super) triangles: wgpu::Buffer,
+    /// The root's box; `None` for a tree nothing can hit.
+    pub(super) bounds: Option<([f32; 3], [f32; 3])>,
     /// Bytes uploaded.
     pub bytes: u64,
-}
-
-/// Runs `make` inside an error scope, so that running out of memory or a limit the adapter
-/// refuses comes back as an error instead of wgpu's default of panicking.
-fn checked<T>(gpu: &Gpu, what: &str, make: impl FnOnce() -> T) -> Result<T> {
-    let memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-    let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let value = make();
-    let invalid = pollster::block_on(validation.pop());
-    let out_of_memory = pollster::block_on(memory.pop());
-    match invalid.or(out_of_memory) {
-        Some(e) => Err(Error::Device {
-            message: format!("{}: {what}: {e}", gpu.info.name),
-        }),
-        None => Ok(value),
-    }
-}
-
-/// A storage buffer holding `bytes` (at least 4, since a binding may not be empty), after
-/// checking it against the adapter's limits.
-fn storage(gpu: &Gpu, what: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
-    let limit = gpu
-        .limits
-        .max_storage_buffer_binding_size
-        .min(gpu.limits.max_buffer_size);
-    if bytes.len() as u64 > limit {
-        return Err(Error::Device {
-            message: format!(
-                "{what} need {:.1} MiB, more than the {:.1} MiB {} binds in one buffer; render \
-                 this scene with the CPU backend",
-                bytes.len() as f64 / 1048576.0,
-                limit as f64 / 1048576.0,
-                gpu.info.name
-            ),
-        });
-    }
-    let padded;
-    let contents = if bytes.is_empty() {
-        padded = [0u8; 4];
-        &padded[..]
-    } else {
-        bytes
-    };
-    checked(gpu, what, || {
-        gpu.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(what),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | usage,
-            })
-    })
 }
 
 impl GpuTree {
@@ -191,18 +136,6 @@ pub struct GpuRays {
     work: wgpu::Buffer,
     work_readback: wgpu::Buffer,
     count: usize,
-}
-
-/// A buffer the host reads back after copying into it.
-fn readback(gpu: &Gpu, what: &str, size: u64) -> Result<wgpu::Buffer> {
-    checked(gpu, what, || {
-        gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(what),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    })
 }
 
 impl GpuRays {
@@ -265,15 +198,6 @@ struct Query {
     walk: GpuWalk,
     any: bool,
     count: bool,
-}
-
-fn wait(gpu: &Gpu) -> Result<()> {
-    gpu.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map(|_| ())
-        .map_err(|e| Error::Device {
-            message: format!("{}: waiting for the GPU failed: {e}", gpu.info.name),
-        })
 }
 
 impl GpuTracer {
@@ -385,64 +309,30 @@ impl GpuTracer {
             .find(|(q, _)| *q == query)
             .map(|(_, p)| p)
             .expect("a pipeline per walk and query");
-        let layout = pipeline.get_bind_group_layout(0);
-        // One uniform and bind group per dispatch; all dispatches go in one submission.
-        let groups: Vec<(wgpu::BindGroup, u32)> = (0..rays.count)
-            .step_by(DISPATCH_RAYS)
-            .map(|first| {
-                let count = DISPATCH_RAYS.min(rays.count - first);
-                let params = Params {
-                    bounds_min: lo,
-                    first: first as u32,
-                    bounds_max: hi,
-                    count: count as u32,
-                };
-                let uniform = gpu
-                    .device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("dispatch"),
-                        contents: bytemuck::bytes_of(&params),
-                        usage: wgpu::BufferUsages::UNIFORM,
-                    });
-                let entries = [
-                    &tree.nodes,
-                    &tree.prim_refs,
-                    &tree.triangles,
-                    &rays.rays,
-                    &rays.hits,
-                    &uniform,
-                    &rays.work,
-                ]
-                .into_iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect::<Vec<_>>();
-                let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("kd-tree walk"),
-                    layout: &layout,
-                    entries: &entries,
-                });
-                (group, count.div_ceil(WORKGROUP) as u32)
+        let bindings = [
+            &tree.nodes,
+            &tree.prim_refs,
+            &tree.triangles,
+            &rays.rays,
+            &rays.hits,
+        ];
+        let uniform = |first: usize, count: usize| {
+            bytemuck::bytes_of(&Params {
+                bounds_min: lo,
+                first: first as u32,
+                bounds_max: hi,
+                count: count as u32,
             })
-            .collect();
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            pass.set_pipeline(pipeline);
-            for (group, workgroups) in &groups {
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(*workgroups, 1, 1);
-            }
-        }
-        let start = Instant::now();
-        gpu.queue.submit([encoder.finish()]);
-        wait(gpu)?;
-        Ok(start.elapsed().as_secs_f64())
+            .to_vec()
+        };
+        dispatch_rays(
+            gpu,
+            pipeline,
+            (rays.count, DISPATCH_RAYS),
+            uniform,
+            &bindings,
+            &[&rays.work],
+        )
     }
 
     /// The hits of the last `trace` of `rays`.
@@ -464,38 +354,4 @@ impl GpuTracer {
                 .collect()
         })
     }
-}
-
-/// Copies `source` into the mappable `staging` buffer, waits, and decodes its bytes.
-fn read_back<T>(
-    gpu: &Gpu,
-    source: &wgpu::Buffer,
-    staging: &wgpu::Buffer,
-    decode: impl FnOnce(&[u8]) -> T,
-) -> Result<T> {
-    let mut encoder = gpu
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    encoder.copy_buffer_to_buffer(source, 0, staging, 0, source.size());
-    gpu.queue.submit([encoder.finish()]);
-    let slice = staging.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    wait(gpu)?;
-    let failed = |e: String| Error::Device {
-        message: format!("{}: reading results back failed: {e}", gpu.info.name),
-    };
-    rx.recv()
-        .map_err(|e| failed(e.to_string()))?
-        .map_err(|e| failed(e.to_string()))?;
-    let value = {
-        let view = slice
-            .get_mapped_range()
-            .map_err(|e| failed(e.to_string()))?;
-        decode(&view)
-    };
-    staging.unmap();
-    Ok(value)
 }

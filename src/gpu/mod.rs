@@ -1,11 +1,15 @@
 //! The GPU backend (cargo feature `gpu`): wgpu compute shaders in WGSL, portable across Vulkan,
 //! Metal and DX12, and run without a card by Mesa's software Vulkan driver (lavapipe). `device`
-//! chooses and names the adapter; `kdtree` uploads the CPU's kd-tree unchanged and walks rays
-//! through it. Nothing here builds a tree or shades: the GPU answers the same two questions as
-//! `accel`, on the same tree.
+//! chooses and names the adapter, `buffers` holds the plumbing; `kdtree` uploads the CPU's kd-tree
+//! unchanged and walks rays through it (`walk.wgsl`, `rays.wgsl`); `whitted` uploads a posed
+//! frame's surfaces, materials, textures and lights and runs the Whitted integrator of
+//! `render/` on camera rays (`whitted.wgsl`). Nothing here builds a tree.
 
+mod buffers;
 mod device;
 mod kdtree;
+mod whitted;
 
 pub use device::{ADAPTER_VAR, Gpu};
 pub use kdtree::{GpuRays, GpuTracer, GpuTree, GpuWalk};
+pub use whitted::{GpuScene, GpuWhitted};

@@ -1,0 +1,353 @@
+//! The Whitted integrator on the GPU (`whitted.wgsl`): a posed frame's surfaces, materials,
+//! textures and lights uploaded once, then the radiance of every camera ray of a batch, both
+//! eyes' rays in one batch if the caller likes, traced and shaded on the GPU with the kd-tree
+//! of `kdtree.rs`.
+
+use super::buffers::{WORKGROUP, checked, dispatch_rays, read_back, readback, storage};
+use super::device::Gpu;
+use super::kdtree::{FULL_STACK, GpuRay, GpuTree, SHORT_STACK};
+use crate::accel::Ray;
+use crate::error::Result;
+use crate::render::{ShadingModel, TraceSettings};
+use crate::scene::light::{Light, LightKind};
+use crate::scene::material::{Material, Texture, Wrap};
+use crate::scene::pose::Geometry;
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    p: [f32; 3],
+    u0: f32,
+    n: [f32; 3],
+    v0: f32,
+    color: [f32; 3],
+    u1: f32,
+    v1: f32,
+    pad: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuMaterial {
+    base_color: [f32; 3],
+    metallic: f32,
+    emissive: [f32; 3],
+    roughness: f32,
+    transmission: f32,
+    ior: f32,
+    texture: i32,
+    tex_coord: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuLight {
+    position: [f32; 3],
+    kind: u32,
+    direction: [f32; 3],
+    range: f32,
+    power: [f32; 3],
+    cos_outer: f32,
+    cos_inner: f32,
+    pad: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuTexture {
+    offset: u32,
+    width: u32,
+    height: u32,
+    flags: u32,
+}
+
+/// `Frame` in `whitted.wgsl`: one dispatch's rays and the settings.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameParams {
+    bounds_min: [f32; 3],
+    first: u32,
+    bounds_max: [f32; 3],
+    count: u32,
+    background: [f32; 3],
+    max_depth: u32,
+    shading: u32,
+    lights: u32,
+    stride: u32,
+    pad: u32,
+}
+
+/// A posed frame's shading data on the GPU.
+pub struct GpuScene {
+    vertices: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    materials: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    textures: wgpu::Buffer,
+    texels: wgpu::Buffer,
+    light_count: u32,
+}
+
+/// A storage buffer of `items`, holding one zeroed item when there are none (a binding may not
+/// be smaller than its element).
+fn array<T: Pod>(gpu: &Gpu, what: &str, mut items: Vec<T>) -> Result<wgpu::Buffer> {
+    if items.is_empty() {
+        items.push(T::zeroed());
+    }
+    storage(
+        gpu,
+        what,
+        bytemuck::cast_slice(&items),
+        wgpu::BufferUsages::empty(),
+    )
+}
+
+fn wrap_code(w: Wrap) -> u32 {
+    match w {
+        Wrap::Repeat => 0,
+        Wrap::MirroredRepeat => 1,
+        Wrap::ClampToEdge => 2,
+    }
+}
+
+impl GpuScene {
+    pub fn upload(
+        gpu: &Gpu,
+        geometry: &Geometry,
+        materials: &[Material],
+        textures: &[Option<Texture>],
+        lights: &[Light],
+    ) -> Result<GpuScene> {
+        let g = geometry;
+        let vertices: Vec<Vertex> = (0..g.positions.len())
+            .map(|i| {
+                let uv = |k: usize| g.tex_coords[k].get(i).copied().unwrap_or_default();
+                Vertex {
+                    p: g.positions[i].to_array(),
+                    n: g.normals.get(i).copied().unwrap_or_default().to_array(),
+                    color: g
+                        .colors
+                        .get(i)
+                        .map_or(Vec3::ONE, |c| c.truncate())
+                        .to_array(),
+                    u0: uv(0).x,
+                    v0: uv(0).y,
+                    u1: uv(1).x,
+                    v1: uv(1).y,
+                    pad: [0.0; 3],
+                }
+            })
+            .collect();
+        let triangles: Vec<[u32; 4]> = g
+            .triangles
+            .iter()
+            .zip(&g.triangle_materials)
+            .map(|(&[a, b, c], &m)| [a, b, c, m])
+            .collect();
+        // Textures that decoded, packed one after another; a material's index moves with them.
+        let mut headers = Vec::new();
+        let mut texels = Vec::new();
+        let mut moved = vec![-1i32; textures.len()];
+        for (i, t) in textures.iter().enumerate() {
+            if let Some(t) = t {
+                moved[i] = headers.len() as i32;
+                headers.push(GpuTexture {
+                    offset: texels.len() as u32,
+                    width: t.width as u32,
+                    height: t.height as u32,
+                    flags: wrap_code(t.wrap[0])
+                        | wrap_code(t.wrap[1]) << 2
+                        | if t.nearest { 16 } else { 0 },
+                });
+                texels.extend(t.texels.iter().map(|v| v.to_array()));
+            }
+        }
+        let materials: Vec<GpuMaterial> = materials
+            .iter()
+            .map(|m| {
+                let texture = m
+                    .base_color_texture
+                    .map_or(-1, |r| moved.get(r.texture).copied().unwrap_or(-1));
+                GpuMaterial {
+                    base_color: m.base_color.truncate().to_array(),
+                    metallic: m.metallic,
+                    emissive: m.emissive.to_array(),
+                    roughness: m.roughness,
+                    transmission: m.transmission,
+                    ior: m.ior,
+                    texture,
+                    tex_coord: m.base_color_texture.map_or(0, |r| r.tex_coord as u32),
+                }
+            })
+            .collect();
+        let gpu_lights: Vec<GpuLight> = lights
+            .iter()
+            .map(|l| {
+                let (kind, cos_inner, cos_outer) = match l.kind {
+                    LightKind::Directional => (0, 1.0, 1.0),
+                    LightKind::Point => (1, 1.0, 1.0),
+                    LightKind::Spot {
+                        inner_cone,
+                        outer_cone,
+                    } => (2, inner_cone.cos(), outer_cone.cos()),
+                };
+                GpuLight {
+                    position: l.position.to_array(),
+                    kind,
+                    direction: l.direction.to_array(),
+                    range: l.range.filter(|r| *r > 0.0).unwrap_or(0.0),
+                    power: l.power.to_array(),
+                    cos_outer,
+                    cos_inner,
+                    pad: [0.0; 3],
+                }
+            })
+            .collect();
+        Ok(GpuScene {
+            vertices: array(gpu, "the vertices", vertices)?,
+            triangles: array(gpu, "the triangles' vertices and materials", triangles)?,
+            materials: array(gpu, "the materials", materials)?,
+            light_count: gpu_lights.len() as u32,
+            lights: array(gpu, "the lights", gpu_lights)?,
+            textures: array(gpu, "the textures", headers)?,
+            texels: array(gpu, "the texels", texels)?,
+        })
+    }
+}
+
+/// The compiled integrator.
+pub struct GpuWhitted {
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl GpuWhitted {
+    pub fn new(gpu: &Gpu) -> Result<GpuWhitted> {
+        // The short stack: a ray's walk state stays small next to the integrator's own stack of
+        // waiting rays, and every walk finds the same hits.
+        let source = [include_str!("walk.wgsl"), include_str!("whitted.wgsl")]
+            .concat()
+            .replace("__STACK_CAP__", &SHORT_STACK.to_string())
+            .replace("__FULL_STACK__", &FULL_STACK.to_string());
+        let module = checked(gpu, "compiling the Whitted shader", || {
+            gpu.device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("whitted"),
+                    source: wgpu::ShaderSource::Wgsl(source.into()),
+                })
+        })?;
+        let pipeline = checked(gpu, "building the Whitted pipeline", || {
+            gpu.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("whitted"),
+                    layout: None,
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+        })?;
+        Ok(GpuWhitted { pipeline })
+    }
+
+    /// The radiance along each camera ray (`Integrator::radiance` on the CPU), with its limit.
+    pub fn radiance(
+        &self,
+        gpu: &Gpu,
+        tree: &GpuTree,
+        scene: &GpuScene,
+        settings: &TraceSettings,
+        rays: &[Ray],
+        t_max: &[f32],
+    ) -> Result<Vec<Vec3>> {
+        assert_eq!(rays.len(), t_max.len(), "one limit per ray");
+        if rays.is_empty() {
+            return Ok(Vec::new());
+        }
+        let packed: Vec<GpuRay> = rays
+            .iter()
+            .zip(t_max)
+            .map(|(r, &t)| GpuRay {
+                origin: r.origin.to_array(),
+                t_max: t.min(f32::MAX),
+                dir: r.dir.to_array(),
+                pad: 0.0,
+            })
+            .collect();
+        let none = wgpu::BufferUsages::empty();
+        let ray_buf = storage(gpu, "the camera rays", bytemuck::cast_slice(&packed), none)?;
+        let out = storage(
+            gpu,
+            "the radiance",
+            &vec![0u8; 16 * rays.len()],
+            wgpu::BufferUsages::COPY_SRC,
+        )?;
+        let back = readback(gpu, "the radiance's read-back buffer", out.size())?;
+        // Each invocation's waiting rays: one per level and the one traced (48 bytes each), for
+        // as many rays per dispatch as fit the adapter's binding limit, at most 2^16.
+        let stride = settings.max_depth + 1;
+        let entry = 48 * stride as u64;
+        let limit = gpu
+            .limits
+            .max_storage_buffer_binding_size
+            .min(gpu.limits.max_buffer_size);
+        let per_dispatch = ((limit / entry) as usize).clamp(WORKGROUP, 1 << 16);
+        let pending = checked(gpu, "the waiting rays", || {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("waiting rays"),
+                size: entry * per_dispatch.min(rays.len().next_multiple_of(WORKGROUP)) as u64,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        })?;
+        // A tree nothing can hit: an empty box (rays then see the background).
+        let (lo, hi) = tree.bounds.unwrap_or(([1.0; 3], [-1.0; 3]));
+        let uniform = |first: usize, count: usize| {
+            bytemuck::bytes_of(&FrameParams {
+                bounds_min: lo,
+                first: first as u32,
+                bounds_max: hi,
+                count: count as u32,
+                background: settings.background.to_array(),
+                max_depth: settings.max_depth,
+                shading: match settings.shading {
+                    ShadingModel::CookTorrance => 0,
+                    ShadingModel::Phong => 1,
+                },
+                lights: scene.light_count,
+                stride,
+                pad: 0,
+            })
+            .to_vec()
+        };
+        let first = [
+            &tree.nodes,
+            &tree.prim_refs,
+            &tree.triangles,
+            &ray_buf,
+            &out,
+        ];
+        let rest = [
+            &scene.vertices,
+            &scene.triangles,
+            &scene.materials,
+            &scene.lights,
+            &scene.textures,
+            &scene.texels,
+            &pending,
+        ];
+        dispatch_rays(
+            gpu,
+            &self.pipeline,
+            (rays.len(), per_dispatch),
+            uniform,
+            &first,
+            &rest,
+        )?;
+        read_back(gpu, &out, &back, |bytes| {
+            let raw: &[[f32; 4]] = bytemuck::cast_slice(bytes);
+            raw.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect()
+        })
+    }
+}

@@ -1,0 +1,360 @@
+// The Whitted integrator of WHITTED.md section 4 on the GPU, after `render/integrator.rs`, with
+// the kd-tree walk of `walk.wgsl` (which the host puts before this file): one invocation per
+// camera ray; emission, direct light from every punctual light through shadow rays, and the
+// Fresnel-weighted mirror and refraction rays to `max_depth`. WGSL has no recursion, so the rays
+// still to trace wait on a per-invocation stack with the weight their radiance gets.
+
+struct Ray {
+    origin: vec3<f32>,
+    t_max: f32,
+    dir: vec3<f32>,
+    pad: f32,
+}
+
+struct Frame {
+    bounds_min: vec3<f32>,
+    first: u32,
+    bounds_max: vec3<f32>,
+    count: u32,
+    background: vec3<f32>,
+    max_depth: u32,
+    // 0: Cook-Torrance (the glTF BRDF), 1: Phong.
+    shading: u32,
+    lights: u32,
+    // Entries of `pending` per invocation.
+    stride: u32,
+    pad0: u32,
+}
+
+// A vertex: position, shading normal (zero: shade flat), two texture coordinate sets, colour.
+struct Vertex {
+    p: vec3<f32>,
+    u0: f32,
+    n: vec3<f32>,
+    v0: f32,
+    color: vec3<f32>,
+    u1: f32,
+    v1: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
+}
+
+struct Material {
+    base_color: vec3<f32>,
+    metallic: f32,
+    emissive: vec3<f32>,
+    roughness: f32,
+    transmission: f32,
+    ior: f32,
+    // Index into `textures`, or -1; which texture coordinate set it reads.
+    texture: i32,
+    tex_coord: u32,
+}
+
+struct Light {
+    position: vec3<f32>,
+    // 0: directional, 1: point, 2: spot.
+    kind: u32,
+    direction: vec3<f32>,
+    // 0: unlimited.
+    range: f32,
+    power: vec3<f32>,
+    cos_outer: f32,
+    cos_inner: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
+}
+
+struct Texture {
+    offset: u32,
+    width: u32,
+    height: u32,
+    // Bits 0-1: wrap s, 2-3: wrap t (0 repeat, 1 mirrored repeat, 2 clamp); bit 4: nearest.
+    flags: u32,
+}
+
+@group(0) @binding(3) var<storage, read> camera_rays: array<Ray>;
+@group(0) @binding(4) var<storage, read_write> radiance: array<vec4<f32>>;
+@group(0) @binding(5) var<uniform> frame: Frame;
+@group(0) @binding(6) var<storage, read> vertices: array<Vertex>;
+// Per triangle: its three vertex indices and its material.
+@group(0) @binding(7) var<storage, read> triangles: array<vec4<u32>>;
+@group(0) @binding(8) var<storage, read> materials: array<Material>;
+@group(0) @binding(9) var<storage, read> lights: array<Light>;
+@group(0) @binding(10) var<storage, read> textures: array<Texture>;
+@group(0) @binding(11) var<storage, read> texels: array<vec4<f32>>;
+// The rays each invocation still has to trace, `frame.stride` entries from `gid.x * stride`.
+// In storage rather than a private array: a private array indexed at run time made Mesa's
+// lavapipe spend minutes compiling the shader.
+@group(0) @binding(12) var<storage, read_write> pending: array<Pending>;
+
+const PI: f32 = 3.14159265358979;
+// Shadow rays stop this fraction short of the light (integrator.rs `SHADOW_EPSILON`).
+const SHADOW_EPSILON: f32 = 1e-4;
+// No limit: the largest f32 (WGSL has no infinity literal).
+const FAR: f32 = 3.4028235e38;
+
+fn hit_anything(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
+    return walk(o, d, t_max, frame.bounds_min, frame.bounds_max, true).prim != NO_PRIM;
+}
+
+// `offset_origin` of integrator.rs (Wächter and Binder, Ray Tracing Gems ch. 6): a few ulps of
+// the point's own coordinates along `n`, a fixed step near the origin.
+fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    var out = p;
+    for (var i = 0u; i < 3u; i++) {
+        let of_i = i32(256.0 * n[i]);
+        let bits = bitcast<i32>(p[i]);
+        let moved = bitcast<f32>(bits + select(of_i, -of_i, p[i] < 0.0));
+        out[i] = select(moved, p[i] + (1.0 / 65536.0) * n[i], abs(p[i]) < 1.0 / 32.0);
+    }
+    return out;
+}
+
+fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
+    if mode == 2u {
+        return clamp(i, 0, n - 1);
+    }
+    if mode == 1u {
+        let period = ((i % (2 * n)) + 2 * n) % (2 * n);
+        return select(2 * n - 1 - period, period, period < n);
+    }
+    return ((i % n) + n) % n;
+}
+
+fn texel(t: Texture, x: i32, y: i32) -> vec4<f32> {
+    let xi = wrap_index(x, i32(t.width), t.flags & 3u);
+    let yi = wrap_index(y, i32(t.height), (t.flags >> 2u) & 3u);
+    return texels[t.offset + u32(yi) * t.width + u32(xi)];
+}
+
+// `Texture::sample`: bilinear (or nearest) with the sampler's wrap modes, (0,0) top-left.
+fn sample_texture(t: Texture, uv: vec2<f32>) -> vec4<f32> {
+    let x = uv.x * f32(t.width) - 0.5;
+    let y = uv.y * f32(t.height) - 0.5;
+    if (t.flags & 16u) != 0u {
+        return texel(t, i32(floor(x + 0.5)), i32(floor(y + 0.5)));
+    }
+    let x0 = floor(x);
+    let y0 = floor(y);
+    let fx = x - x0;
+    let fy = y - y0;
+    let xi = i32(x0);
+    let yi = i32(y0);
+    let top = mix(texel(t, xi, yi), texel(t, xi + 1, yi), fx);
+    let bottom = mix(texel(t, xi, yi + 1), texel(t, xi + 1, yi + 1), fx);
+    return mix(top, bottom, fy);
+}
+
+fn pow5(x: f32) -> f32 {
+    let x2 = x * x;
+    return x2 * x2 * x;
+}
+
+fn schlick(f0: vec3<f32>, cos: f32) -> vec3<f32> {
+    let w = pow5(1.0 - clamp(cos, 0.0, 1.0));
+    return f0 + (vec3<f32>(1.0) - f0) * w;
+}
+
+// shading.rs `gltf_brdf`: the glTF 2.0 metallic-roughness BRDF.
+fn gltf_brdf(base: vec3<f32>, metallic: f32, roughness: f32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    let h = normalize(l + v);
+    let n_l = dot(n, l);
+    let n_v = dot(n, v);
+    let n_h = dot(n, h);
+    let v_h = dot(v, h);
+    var spec = 0.0;
+    if roughness > 0.0 && n_h > 0.0 {
+        let a = roughness * roughness;
+        let a2 = a * a;
+        let d_term = n_h * n_h * (a2 - 1.0) + 1.0;
+        let d = a2 / (PI * d_term * d_term);
+        let vis = 0.5 / (n_l * sqrt(n_v * n_v * (1.0 - a2) + a2) + n_v * sqrt(n_l * n_l * (1.0 - a2) + a2));
+        let s = d * vis;
+        // Not finite (NaN fails the comparison too): no highlight, as on the CPU.
+        spec = select(0.0, s, abs(s) <= 3.4028235e38);
+    }
+    let fw = pow5(1.0 - abs(v_h));
+    let f_dielectric = 0.04 + 0.96 * fw;
+    let f_metal = base + (vec3<f32>(1.0) - base) * fw;
+    let dielectric = (1.0 - f_dielectric) * base / PI + vec3<f32>(f_dielectric * spec);
+    let metal = f_metal * spec;
+    return (1.0 - metallic) * dielectric + metallic * metal;
+}
+
+// shading.rs `phong_brdf`: normalised Blinn-Phong with the exponent from the roughness.
+fn phong_brdf(base: vec3<f32>, metallic: f32, roughness: f32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    let diffuse = (1.0 - metallic) * base / PI;
+    if roughness <= 0.0 {
+        return diffuse;
+    }
+    let a = max(roughness * roughness, 1e-3);
+    let e = max(2.0 / (a * a) - 2.0, 0.0);
+    let h = normalize(l + v);
+    let n_h = max(dot(n, h), 0.0);
+    let ks = mix(vec3<f32>(0.04), base, metallic);
+    return diffuse + ks * ((e + 8.0) / (8.0 * PI) * pow(n_h, e));
+}
+
+fn brdf(base: vec3<f32>, metallic: f32, roughness: f32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    if frame.shading == 1u {
+        return phong_brdf(base, metallic, roughness, n, l, v);
+    }
+    return gltf_brdf(base, metallic, roughness, n, l, v);
+}
+
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let len2 = dot(v, v);
+    if len2 > 0.0 && len2 <= 3.4028235e38 {
+        return v / sqrt(len2);
+    }
+    return vec3<f32>(0.0);
+}
+
+// Direct light at a lit surface point from every light, each behind its shadow ray.
+fn direct_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, v: vec3<f32>, base: vec3<f32>, m: Material) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    let origin = offset_origin(p, ng);
+    for (var i = 0u; i < frame.lights; i++) {
+        let light = lights[i];
+        var l: vec3<f32>;
+        var irradiance: vec3<f32>;
+        var shadow_dir: vec3<f32>;
+        var t_max: f32;
+        if light.kind == 0u {
+            l = -light.direction;
+            irradiance = light.power;
+            shadow_dir = l;
+            t_max = FAR;
+        } else {
+            let to = light.position - p;
+            let d2 = dot(to, to);
+            let d = sqrt(d2);
+            l = to / d;
+            var cone = 1.0;
+            if light.kind == 2u {
+                let scale = 1.0 / max(light.cos_inner - light.cos_outer, 0.001);
+                let offset = -light.cos_outer * scale;
+                let a = clamp(dot(light.direction, -l) * scale + offset, 0.0, 1.0);
+                cone = a * a;
+            }
+            var range = 1.0;
+            if light.range > 0.0 {
+                let r = d / light.range;
+                range = clamp(1.0 - r * r * r * r, 0.0, 1.0);
+            }
+            irradiance = light.power * (cone * range / d2);
+            shadow_dir = light.position - origin;
+            t_max = 1.0 - SHADOW_EPSILON;
+        }
+        let n_l = dot(n, l);
+        if n_l <= 0.0 || dot(ng, l) <= 0.0 || all(irradiance == vec3<f32>(0.0)) {
+            continue;
+        }
+        if hit_anything(origin, shadow_dir, t_max) {
+            continue;
+        }
+        sum += brdf(base, m.metallic, m.roughness, n, l, v) * n_l * irradiance;
+    }
+    return sum;
+}
+
+struct Pending {
+    origin: vec3<f32>,
+    t_max: f32,
+    dir: vec3<f32>,
+    depth: u32,
+    weight: vec3<f32>,
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= frame.count {
+        return;
+    }
+    let index = frame.first + gid.x;
+    let camera = camera_rays[index];
+    // Rays waiting: at most one per level below the camera ray, and the one being traced.
+    let first_slot = gid.x * frame.stride;
+    var size = 1u;
+    pending[first_slot] = Pending(camera.origin, camera.t_max, camera.dir, 1u, vec3<f32>(1.0));
+    var total = vec3<f32>(0.0);
+    while size > 0u {
+        size -= 1u;
+        let ray = pending[first_slot + size];
+        let hit = walk(ray.origin, ray.dir, ray.t_max, frame.bounds_min, frame.bounds_max, false);
+        if hit.prim == NO_PRIM {
+            total += ray.weight * frame.background;
+            continue;
+        }
+        // The hit's surface (`shading_point`): the barycentric point, geometric and
+        // interpolated normals turned to the viewer, texture coordinates and vertex colour.
+        let tri = triangles[hit.prim];
+        let a = vertices[tri.x];
+        let b = vertices[tri.y];
+        let c = vertices[tri.z];
+        let b1 = hit.b1;
+        let b2 = hit.b2;
+        let b0 = 1.0 - b1 - b2;
+        let p = a.p * b0 + b.p * b1 + c.p * b2;
+        let ng0 = normalize_or_zero(cross(b.p - a.p, c.p - a.p));
+        let interp = a.n * b0 + b.n * b1 + c.n * b2;
+        var ns = ng0;
+        if dot(interp, interp) > 1e-12 {
+            ns = normalize(interp);
+        }
+        let front = dot(ng0, -ray.dir) > 0.0;
+        let side = select(-1.0, 1.0, front);
+        let n = ns * side;
+        let ng = ng0 * side;
+        let m = materials[tri.w];
+        var base = m.base_color * (a.color * b0 + b.color * b1 + c.color * b2);
+        if m.texture >= 0 {
+            var uv = vec2<f32>(a.u0, a.v0) * b0 + vec2<f32>(b.u0, b.v0) * b1 + vec2<f32>(c.u0, c.v0) * b2;
+            if m.tex_coord == 1u {
+                uv = vec2<f32>(a.u1, a.v1) * b0 + vec2<f32>(b.u1, b.v1) * b1 + vec2<f32>(c.u1, c.v1) * b2;
+            }
+            base *= sample_texture(textures[m.texture], uv).xyz;
+        }
+        let v = -ray.dir;
+        let glass = m.transmission >= 0.5;
+        var here = m.emissive;
+        if !glass && dot(n, v) > 0.0 {
+            here += direct_light(p, n, ng, v, base, m);
+        }
+        total += ray.weight * here;
+        if ray.depth >= frame.max_depth {
+            continue;
+        }
+        // The mirror ray and, for glass, the refraction ray (`bounces`).
+        let cos_i = clamp(dot(n, v), 0.0, 1.0);
+        let reflect_dir = normalize(ray.dir + 2.0 * cos_i * n);
+        var reflect_weight = vec3<f32>(0.0);
+        if glass {
+            let eta = select(m.ior, 1.0 / m.ior, front);
+            let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+            var f = 1.0;
+            if sin2_t < 1.0 {
+                let cos_t = sqrt(1.0 - sin2_t);
+                let rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+                let rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+                f = 0.5 * (rs * rs + rp * rp);
+                let dir = normalize(eta * ray.dir + (eta * cos_i - cos_t) * n);
+                let o = offset_origin(p, select(-ng, ng, dot(ng, dir) >= 0.0));
+                pending[first_slot + size] = Pending(o, FAR, dir, ray.depth + 1u, ray.weight * (1.0 - f) * base);
+                size += 1u;
+            }
+            reflect_weight = vec3<f32>(f);
+        } else if m.roughness == 0.0 {
+            reflect_weight = (1.0 - m.metallic) * schlick(vec3<f32>(0.04), cos_i) + m.metallic * schlick(base, cos_i);
+        } else {
+            continue;
+        }
+        let o = offset_origin(p, select(-ng, ng, dot(ng, reflect_dir) >= 0.0));
+        pending[first_slot + size] = Pending(o, FAR, reflect_dir, ray.depth + 1u, ray.weight * reflect_weight);
+        size += 1u;
+    }
+    radiance[index] = vec4<f32>(total, 1.0);
+}
