@@ -68,6 +68,10 @@ pub enum Command {
         /// 16G, or none); default: three quarters of the machine's memory.
         #[arg(long, value_name = "SIZE", value_parser = parse_memory_limit)]
         max_memory: Option<MemoryLimit>,
+        /// Trace on the CPU or the GPU (built with `--features gpu`), overriding [render]
+        /// backend.
+        #[arg(long, value_enum)]
+        backend: Option<stereotrace::render::Backend>,
     },
     /// Check that every frame of a farm's shards is finished and current, merge their frame
     /// logs, and write the outputs that need the whole sequence (videos, pseudo-stereo frames,

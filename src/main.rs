@@ -83,8 +83,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
             shard,
             resume,
             max_memory,
+            backend,
         } => {
-            let p = LoadedPipeline::load(&pipeline)?;
+            let mut p = LoadedPipeline::load(&pipeline)?;
+            if let Some(b) = backend {
+                p = p.with_overrides(&[("render.backend".into(), b.name().into())])?;
+            }
             MemoryEstimate::of(&p).check(&p.file, memory_limit(max_memory))?;
             // Warnings say what the render will not do as asked: --quiet keeps them.
             warn_all(&p.warnings);

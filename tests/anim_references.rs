@@ -1,7 +1,7 @@
 //! The animated references in `tests/data/refs/anim/` (a skinned, a morphed and an interpolation
 //! test model, posed by an independent implementation and rendered by Mitsuba 3 under WHITTED.md
 //! and DESIGN.md's animation conventions): every frame there, both eyes, must pass idiff's
-//! `--fail 0.02 --failpercent 0.5`.
+//! `--fail 0.02 --failpercent 0.5`, on the CPU and (built with the `gpu` feature) on the GPU.
 
 mod common;
 
@@ -13,6 +13,18 @@ use stereotrace::pipeline::run::{RunOptions, run};
 
 #[test]
 fn every_animated_reference_frame_matches() {
+    animated_references_match("cpu");
+}
+
+#[cfg(feature = "gpu")]
+#[test]
+fn every_animated_reference_frame_matches_on_the_gpu() {
+    if common::gpu_adapter().is_some() {
+        animated_references_match("gpu");
+    }
+}
+
+fn animated_references_match(backend: &str) {
     let mut dirs: Vec<_> = std::fs::read_dir(data().join("refs/anim"))
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -34,13 +46,13 @@ fn every_animated_reference_frame_matches() {
         let params: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("params.json")).unwrap())
                 .unwrap();
-        let out = scratch(&format!("anim-{name}"));
+        let out = scratch(&format!("anim-{name}-{backend}"));
         let (res, bg) = (&params["resolution"], &params["background"]);
         let pipeline = out.join("p.toml");
         std::fs::write(
             &pipeline,
             format!(
-                "[scene]\npath = {:?}\nanimation = \"all\"\n[render]\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nbackground = [{}, {}, {}]\n[stereo]\ninteraxial = {}\nconvergence = {}\n[frames]\nfps = {}\n[[output]]\nkind = \"exr\"\npath = \"f_{{frame:04}}.exr\"\n",
+                "[scene]\npath = {:?}\nanimation = \"all\"\n[render]\nbackend = {backend:?}\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nbackground = [{}, {}, {}]\n[stereo]\ninteraxial = {}\nconvergence = {}\n[frames]\nfps = {}\n[[output]]\nkind = \"exr\"\npath = \"f_{{frame:04}}.exr\"\n",
                 dir.join(params["gltf"].as_str().unwrap()).to_string_lossy(),
                 res[0], res[1], params["spp"], params["max_depth"], bg[0], bg[1], bg[2],
                 params["interaxial"], params["convergence"], params["fps"]
@@ -70,7 +82,7 @@ fn every_animated_reference_frame_matches() {
                     .1;
                 let d = compare(&Planes::from_image(img), reference, &t);
                 println!(
-                    "{name:>26} frame {frame:>3} {eye:>5}: mean abs {:.5}  PSNR {:6.2} dB  over 0.02: {:.3}%  {:?}",
+                    "{backend} {name:>26} frame {frame:>3} {eye:>5}: mean abs {:.5}  PSNR {:6.2} dB  over 0.02: {:.3}%  {:?}",
                     d.mean_error,
                     d.psnr,
                     d.percent_failed(),
@@ -78,7 +90,7 @@ fn every_animated_reference_frame_matches() {
                 );
                 if d.verdict == Verdict::Fail {
                     failures.push(format!(
-                        "{name} frame {frame} {eye}: {:.3}% over 0.02",
+                        "{backend} {name} frame {frame} {eye}: {:.3}% over 0.02",
                         d.percent_failed()
                     ));
                 }

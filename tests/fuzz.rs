@@ -114,7 +114,9 @@ fn load_and_render(dir: &Path, scene: &str, pipeline: Option<&[u8]>) -> Result<(
         }
         Ok(loaded) => {
             let mut tracer = FrameTracer::new(&loaded);
-            let (frame, _) = tracer.trace(0, &[View::LEFT, View::RIGHT], &|_| {});
+            let (frame, _) = tracer
+                .trace(0, &[View::LEFT, View::RIGHT], &|_| {})
+                .unwrap();
             for (view, image) in &frame.views {
                 for px in &image.pixels {
                     prop_assert!(

@@ -21,20 +21,7 @@ mod on_gpu {
     use stereotrace::gpu::{Gpu, GpuRays, GpuTracer, GpuTree, GpuWalk};
 
     fn gpu() -> Option<Gpu> {
-        match Gpu::open() {
-            Ok(g) => {
-                eprintln!("adapter: {}", g.describe());
-                Some(g)
-            }
-            Err(e) => {
-                eprintln!("{e}");
-                super::common::missing_tool(
-                    "a GPU adapter (without a card: Debian's mesa-vulkan-drivers)",
-                    "STEREOTRACE_SKIP_GPU",
-                );
-                None
-            }
-        }
+        super::common::gpu_adapter()
     }
 
     struct Rng(u64);
@@ -435,5 +422,111 @@ mod on_gpu {
                 assert!(mean < 1e-3, "{path:?} {shading:?}: mean difference {mean}");
             }
         }
+    }
+
+    /// The default pipeline rendered on both backends: every pixel of both eyes within 1e-3
+    /// (measured when written: at most 1.1e-5, in 110 of 230,400 pixels above 1e-6), which
+    /// passes the references' `--fail 0.02 --failpercent 0.5` with room to spare.
+    #[test]
+    fn the_default_pipeline_renders_the_same_on_both_backends() {
+        use stereotrace::compare::{Planes, Thresholds, Verdict, compare};
+        use stereotrace::output::exr::read_views;
+        use stereotrace::pipeline::LoadedPipeline;
+        use stereotrace::pipeline::run::{RunOptions, run};
+        if gpu().is_none() {
+            return;
+        }
+        let base =
+            LoadedPipeline::load(&super::common::repo().join("pipelines/default.toml")).unwrap();
+        let mut eyes = Vec::new();
+        for backend in ["cpu", "gpu"] {
+            let p = base
+                .with_overrides(&[("render.backend".into(), backend.into())])
+                .unwrap();
+            let out = super::common::scratch(&format!("default-{backend}"));
+            let opts = RunOptions {
+                frames: None,
+                threads: None,
+                out_dir: out.clone(),
+                progress: false,
+                shard: None,
+                resume: false,
+            };
+            run(&p, &opts).unwrap();
+            eyes.push(read_views(&out.join("out/whitted_0000.exr")).unwrap());
+        }
+        let rule = Thresholds {
+            fail: 0.02,
+            fail_percent: 0.5,
+            ..Default::default()
+        };
+        let close = Thresholds {
+            fail: 1e-3,
+            fail_percent: 0.01,
+            ..Default::default()
+        };
+        for ((eye, cpu), (_, gpu)) in eyes[0].iter().zip(&eyes[1]) {
+            let (cpu, gpu) = (Planes::from_image(cpu), Planes::from_image(gpu));
+            let d = compare(&gpu, &cpu, &rule);
+            let near = compare(&gpu, &cpu, &close);
+            eprintln!(
+                "{eye}: max {:.2e} at {:?}, mean {:.2e}, {} pixels over 1e-3",
+                d.max_error, d.max_at, d.mean_error, near.failures
+            );
+            assert_ne!(d.verdict, Verdict::Fail, "{eye}: {d:?}");
+            assert_ne!(near.verdict, Verdict::Fail, "{eye}: {near:?}");
+            assert!(d.mean_error < 1e-6, "{eye}: mean {}", d.mean_error);
+        }
+    }
+
+    /// The GPU traces every view itself: a pipeline asking it to reproject one eye from the
+    /// other is refused at the key, and `render --backend` goes through the same validation.
+    #[test]
+    fn reprojection_on_the_gpu_is_refused_at_the_key() {
+        let dir = super::common::scratch("gpu-reproject");
+        let scene = super::common::repo().join("scenes/whitted.gltf");
+        let pipeline = dir.join("p.toml");
+        std::fs::write(
+            &pipeline,
+            format!(
+                "[scene]\npath = {scene:?}\n[render]\nwidth = 32\nheight = 16\neye_reuse = \"reproject\"\nbackend = \"gpu\"\n[[output]]\nkind = \"png\"\npath = \"f_{{eye}}.png\"\n"
+            ),
+        )
+        .unwrap();
+        let run = |args: &[&str]| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+                .args(args)
+                .output()
+                .unwrap()
+        };
+        let out = run(&["check", pipeline.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains("p.toml:6:") && stderr.contains("eye_reuse"),
+            "{stderr}"
+        );
+        std::fs::write(
+            &pipeline,
+            std::fs::read_to_string(&pipeline)
+                .unwrap()
+                .replace("backend = \"gpu\"\n", ""),
+        )
+        .unwrap();
+        let out = run(&[
+            "render",
+            pipeline.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains("render.backend=gpu") && stderr.contains("eye_reuse"),
+            "{stderr}"
+        );
+        assert!(!dir.join("f_left.png").exists());
     }
 }

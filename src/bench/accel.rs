@@ -8,6 +8,7 @@ use super::median;
 use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
 use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod, WalkCounts};
 use crate::error::{Error, Result};
+use crate::render::Backend;
 use crate::scene::Scene;
 use crate::scene::framing_camera;
 use crate::scene::pose;
@@ -105,13 +106,6 @@ pub struct AccelBenchOptions {
     /// Pareto front per scene).
     #[arg(long)]
     pub chart: Option<PathBuf>,
-}
-
-/// Which processor walks the kd-tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Backend {
-    Cpu,
-    Gpu,
 }
 
 /// How `bench accel` hands rays to a kd-tree.
@@ -301,7 +295,7 @@ pub fn bench_accel(
     if on_gpu {
         return Err(Error::input(
             Path::new("--backend"),
-            "this stereotrace was built without the GPU backend: cargo build --release --features gpu",
+            crate::render::NOT_BUILT,
         ));
     }
     let on_cpu = opts.backends.contains(&Backend::Cpu);

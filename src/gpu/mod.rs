@@ -3,13 +3,16 @@
 //! chooses and names the adapter, `buffers` holds the plumbing; `kdtree` uploads the CPU's kd-tree
 //! unchanged and walks rays through it (`walk.wgsl`, `rays.wgsl`); `whitted` uploads a posed
 //! frame's surfaces, materials, textures and lights and runs the Whitted integrator of
-//! `render/` on camera rays (`whitted.wgsl`). Nothing here builds a tree.
+//! `render/` on camera rays (`whitted.wgsl`); `frame` traces a frame's views with them. Nothing
+//! here builds a tree of its own: the GPU walks the CPU's.
 
 mod buffers;
 mod device;
+mod frame;
 mod kdtree;
 mod whitted;
 
 pub use device::{ADAPTER_VAR, Gpu};
+pub use frame::{FrameScene, GpuFrames, GpuView};
 pub use kdtree::{GpuRays, GpuTracer, GpuTree, GpuWalk};
 pub use whitted::{GpuScene, GpuWhitted};

@@ -329,7 +329,7 @@ fn run_frames(
         let views = views_needed(p, &rig, k);
         tile_bar.set_length((tile_count(w, h) * views.len()) as u64);
         tile_bar.set_message(format!("frame {frame}"));
-        let (stereo, stats) = tracer.trace(frame, &views, &|_| tile_bar.inc(1));
+        let (stereo, stats) = tracer.trace(frame, &views, &|_| tile_bar.inc(1))?;
         if interrupt::requested() {
             // Tiles may have been skipped: the frame is not written.
             break;

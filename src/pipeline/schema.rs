@@ -6,7 +6,7 @@ use super::location::line_column;
 use super::output_spec::OutputSpec;
 use crate::accel::{SplitMethod, UpdateMode};
 use crate::error::{Error, Result};
-use crate::render::{EyeReuse, FloatingWindow, Rig, ShadingModel};
+use crate::render::{Backend, EyeReuse, FloatingWindow, Rig, ShadingModel};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -65,6 +65,7 @@ pub struct RenderSection {
     /// 0 = all cores.
     pub threads: usize,
     pub eye_reuse: EyeReuse,
+    pub backend: Backend,
 }
 
 /// Exactly three numbers (an RGB colour): a fourth would otherwise be dropped in silence.
@@ -91,6 +92,7 @@ impl Default for RenderSection {
             background: [0.0; 3],
             threads: 0,
             eye_reuse: EyeReuse::Off,
+            backend: Backend::Cpu,
         }
     }
 }

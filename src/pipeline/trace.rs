@@ -6,11 +6,13 @@ use super::LoadedPipeline;
 use super::outputs::StereoFrame;
 use super::rig_plan::{FrameProbe, FrameRig, RigPlanner};
 use crate::accel::{BuildParams, Intersect, LogRow, Updater};
+use crate::error::Result;
 use crate::output::Image;
 use crate::render::{
-    Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ParallaxModel, ProbeCamera,
-    RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample, TILE,
-    TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
+    Backend, Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ParallaxModel,
+    ProbeCamera, RECORDED_LIGHTS, RayCounts, Rendered, Reprojection, Rig, RigParams, SceneView,
+    SourceSample, TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views,
+    view_window,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -54,6 +56,9 @@ pub struct FrameTracer<'p> {
     /// choice is smoothed over them.
     planner: Option<RigPlanner>,
     prober: Option<Prober<'p>>,
+    /// The GPU backend, opened at the first frame it traces.
+    #[cfg(feature = "gpu")]
+    gpu: Option<crate::gpu::GpuFrames>,
 }
 
 /// Probes frames apart from the frame being traced, with acceleration structures of its own.
@@ -235,6 +240,8 @@ impl<'p> FrameTracer<'p> {
             stop: None,
             planner,
             prober,
+            #[cfg(feature = "gpu")]
+            gpu: None,
         }
     }
 
@@ -268,7 +275,7 @@ impl<'p> FrameTracer<'p> {
         frame: u32,
         views: &[View],
         on_tile: &(dyn Fn(View) + Sync),
-    ) -> (StereoFrame, FrameStats) {
+    ) -> Result<(StereoFrame, FrameStats)> {
         let (p, spec) = (self.p, &self.p.spec);
         let mut stats = FrameStats::default();
         let t = Instant::now();
@@ -285,6 +292,11 @@ impl<'p> FrameTracer<'p> {
         } else {
             posed.lights.clone()
         };
+        let settings = TraceSettings {
+            max_depth: spec.render.max_depth,
+            shading: spec.render.shading,
+            background: Vec3::from(spec.render.background),
+        };
         let integrator = Integrator {
             scene: SceneView {
                 accel: &accel,
@@ -293,11 +305,7 @@ impl<'p> FrameTracer<'p> {
                 textures: &p.scene.textures,
                 lights: &lights,
             },
-            settings: TraceSettings {
-                max_depth: spec.render.max_depth,
-                shading: spec.render.shading,
-                background: Vec3::from(spec.render.background),
-            },
+            settings,
         };
         stats.rig = plan_rig(&mut self.planner, &mut self.prober, frame, || {
             frame_probe(p, &posed, bounds, &accel)
@@ -350,6 +358,11 @@ impl<'p> FrameTracer<'p> {
                 _ => passes.push(vec![view]),
             }
         }
+        // The GPU traces every view in one pass (validation refuses reprojection with it).
+        let on_gpu = spec.render.backend == Backend::Gpu;
+        if on_gpu {
+            passes = vec![views.to_vec()];
+        }
         let mut images = Vec::new();
         let mut source: Option<(EyeCamera, Vec<Vec<SourceSample>>)> = None;
         for pass in passes {
@@ -383,7 +396,11 @@ impl<'p> FrameTracer<'p> {
                     role,
                 })
                 .collect();
-            let rendered = render_views(&integrator, &films, &|k| on_tile(pass[k]), self.stop);
+            let rendered = if on_gpu {
+                self.gpu_views(&integrator.scene, &settings, &films, &|k| on_tile(pass[k]))?
+            } else {
+                render_views(&integrator, &films, &|k| on_tile(pass[k]), self.stop)
+            };
             let secs = t.elapsed().as_secs_f64() / pass.len() as f64;
             stats.rays.add(&rendered.counts);
             if matches!(role, ViewRole::Source) {
@@ -402,7 +419,64 @@ impl<'p> FrameTracer<'p> {
             let i = images.iter().position(|(v, _)| v == view).expect("traced");
             traced.views.push(images.swap_remove(i));
         }
-        (traced, stats)
+        Ok((traced, stats))
+    }
+
+    /// `films` traced on the GPU, which is opened (and named) on first use. It counts camera
+    /// rays only: shadow and secondary rays stay on the GPU uncounted.
+    #[cfg(feature = "gpu")]
+    fn gpu_views<A: Intersect>(
+        &mut self,
+        scene: &SceneView<A>,
+        settings: &TraceSettings,
+        films: &[ViewFilm],
+        on_tile: &(dyn Fn(usize) + Sync),
+    ) -> Result<Rendered> {
+        use crate::gpu::{FrameScene, GpuFrames, GpuView};
+        if self.gpu.is_none() {
+            self.gpu = Some(GpuFrames::open()?);
+        }
+        let gpu = self.gpu.as_mut().expect("opened above");
+        let views: Vec<GpuView> = films
+            .iter()
+            .map(|f| GpuView {
+                camera: f.camera,
+                film: f.film,
+            })
+            .collect();
+        let frame = FrameScene {
+            geometry: scene.geometry,
+            materials: scene.materials,
+            textures: scene.textures,
+            lights: scene.lights,
+        };
+        let images = gpu.render(&frame, settings, &views, on_tile, self.stop)?;
+        let primary = films
+            .iter()
+            .map(|f| (f.film.width * f.film.height) as u64 * f.film.spp as u64)
+            .sum();
+        Ok(Rendered {
+            images,
+            counts: RayCounts {
+                primary,
+                ..Default::default()
+            },
+            samples: Vec::new(),
+        })
+    }
+
+    #[cfg(not(feature = "gpu"))]
+    fn gpu_views<A: Intersect>(
+        &mut self,
+        _: &SceneView<A>,
+        _: &TraceSettings,
+        _: &[ViewFilm],
+        _: &(dyn Fn(usize) + Sync),
+    ) -> Result<Rendered> {
+        Err(crate::error::Error::Internal(format!(
+            "a pipeline asked for the GPU backend past validation: {}",
+            crate::render::NOT_BUILT
+        )))
     }
 }
 

@@ -6,7 +6,7 @@ use super::collisions::check_collisions;
 use super::location::{Invalid, Key, invalid};
 use super::schema::{Metres, Pipeline, Selector};
 use super::template::PathTemplate;
-use crate::render::{FloatingWindow, Rig};
+use crate::render::{Backend, FloatingWindow, NOT_BUILT, Rig};
 use crate::scene::Scene;
 
 /// Range checks that need no scene; returns the parsed output templates.
@@ -45,6 +45,15 @@ pub(super) fn validate_values(
         return Err(invalid(
             &[N("render"), N("threads")],
             "threads must be between 0 (all cores) and 1024",
+        ));
+    }
+    if !r.backend.built() {
+        return Err(invalid(&[N("render"), N("backend")], NOT_BUILT));
+    }
+    if r.backend == Backend::Gpu && r.eye_reuse.reprojects() {
+        return Err(invalid(
+            &[N("render"), N("eye_reuse")],
+            "the GPU backend traces every view itself: eye_reuse must be \"off\" or \"paired\" with backend = \"gpu\"",
         ));
     }
     let s = &p.stereo;

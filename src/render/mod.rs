@@ -3,6 +3,7 @@
 //! the depth probe with the stereo comfort rules it feeds.
 //! It sees geometry only through `accel::Intersect` and never knows an output file format.
 
+mod backend;
 mod camera;
 mod comfort;
 mod depth;
@@ -13,6 +14,7 @@ mod sampling;
 mod shading;
 mod view;
 
+pub use backend::{Backend, NOT_BUILT};
 pub use camera::{EyeCamera, Rig, RigParams};
 pub use comfort::{
     Budget, DepthRange, FloatingWindow, ParallaxModel, VIEWER_EYES, auto_interaxial,
@@ -26,5 +28,6 @@ pub use integrator::{
     Integrator, RECORDED_LIGHTS, RayCounts, SceneView, TraceSettings, offset_origin,
 };
 pub use reproject::{Reprojection, SourceSample};
+pub use sampling::pixel_sample;
 pub use shading::ShadingModel;
 pub use view::{Eye, View};

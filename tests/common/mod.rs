@@ -36,12 +36,17 @@ pub fn reference_dirs() -> Vec<PathBuf> {
 
 /// A pipeline file for a reference scene built from its params.json.
 pub fn reference_pipeline(dir: &Path, out: &Path) -> PathBuf {
+    reference_pipeline_on(dir, out, "cpu")
+}
+
+/// `reference_pipeline` traced by `backend` (`[render] backend`).
+pub fn reference_pipeline_on(dir: &Path, out: &Path, backend: &str) -> PathBuf {
     let params: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("params.json")).unwrap()).unwrap();
     let res = &params["resolution"];
     let bg = &params["background"];
     let text = format!(
-        "[scene]\npath = {scene:?}\n[render]\nwidth = {w}\nheight = {h}\nspp = {spp}\nmax_depth = {depth}\nbackground = [{b0}, {b1}, {b2}]\n[stereo]\nrig = \"off-axis\"\ninteraxial = {ia}\nconvergence = {cv}\n[[output]]\nkind = \"exr\"\npath = \"ours.exr\"\n",
+        "[scene]\npath = {scene:?}\n[render]\nbackend = {backend:?}\nwidth = {w}\nheight = {h}\nspp = {spp}\nmax_depth = {depth}\nbackground = [{b0}, {b1}, {b2}]\n[stereo]\nrig = \"off-axis\"\ninteraxial = {ia}\nconvergence = {cv}\n[[output]]\nkind = \"exr\"\npath = \"ours.exr\"\n",
         scene = dir.join("scene.gltf").to_string_lossy(),
         w = res[0],
         h = res[1],
@@ -60,9 +65,14 @@ pub fn reference_pipeline(dir: &Path, out: &Path) -> PathBuf {
 
 /// Renders a reference scene with its parameters; returns (eye name, image) pairs.
 pub fn render_reference(dir: &Path) -> Vec<(String, Image)> {
+    render_reference_on(dir, "cpu")
+}
+
+/// `render_reference` traced by `backend`.
+pub fn render_reference_on(dir: &Path, backend: &str) -> Vec<(String, Image)> {
     let name = dir.file_name().unwrap().to_string_lossy().to_string();
-    let out = scratch(&format!("ref-{name}"));
-    let pipeline = reference_pipeline(dir, &out);
+    let out = scratch(&format!("ref-{name}-{backend}"));
+    let pipeline = reference_pipeline_on(dir, &out, backend);
     let p = LoadedPipeline::load(&pipeline).unwrap();
     run(
         &p,
@@ -221,4 +231,24 @@ pub fn position_buffers(
     let buffers = json!([{"byteLength": bytes.len(),
         "uri": format!("data:application/octet-stream;base64,{data}")}]);
     (json!(views), json!(accessors), buffers)
+}
+
+/// Whether the machine has a GPU adapter for the GPU backend's tests: without one the calling
+/// test fails saying how to get one, or with STEREOTRACE_SKIP_GPU=1 skips out loud.
+#[cfg(feature = "gpu")]
+pub fn gpu_adapter() -> Option<stereotrace::gpu::Gpu> {
+    match stereotrace::gpu::Gpu::open() {
+        Ok(g) => {
+            eprintln!("adapter: {}", g.describe());
+            Some(g)
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            missing_tool(
+                "a GPU adapter (without a card: Debian's mesa-vulkan-drivers)",
+                "STEREOTRACE_SKIP_GPU",
+            );
+            None
+        }
+    }
 }

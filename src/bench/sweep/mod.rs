@@ -135,13 +135,14 @@ fn trace_frames(
     p: &LoadedPipeline,
     frames: (u32, u32),
     mut on_frame: impl FnMut(usize, Vec<(View, Image)>, FrameStats),
-) {
+) -> Result<()> {
     let views = p.rig_views();
     let mut tracer = FrameTracer::new(p);
     for (k, f) in (frames.0..=frames.1).enumerate() {
-        let (traced, stats) = tracer.trace(f, &views, &|_| {});
+        let (traced, stats) = tracer.trace(f, &views, &|_| {})?;
         on_frame(k, traced.views, stats);
     }
+    Ok(())
 }
 
 /// Runs the sweep and writes its files; `progress` hears each combination as it finishes.
@@ -206,7 +207,7 @@ pub fn sweep(
                     .map(|(v, img)| (*v, Planes::from_image(img)))
                     .collect(),
             )
-        });
+        })?;
         renders.push((key, planes));
         Ok(renders.len() - 1)
     };
@@ -266,7 +267,7 @@ pub fn sweep(
                         })
                         .collect();
                 }
-            });
+            })?;
             s.peak = memory::peak_bytes().map(|b| b.max(s.peak.unwrap_or(0)));
             let last: f64 = s.frame_s.iter().filter_map(|v| v.last()).sum();
             progress(&format!(

@@ -1,0 +1,135 @@
+//! Views of a posed frame traced on the GPU (`[render] backend = "gpu"`): the camera samples are
+//! the CPU's (`render::pixel_sample` and `EyeCamera::ray`, so both backends sample the same film
+//! points), every view's rays of a band of rows go in one batch, and each pixel is the mean of
+//! its samples summed in sample order, as `render/frame.rs` does. The kd-tree is the CPU's
+//! binned SAH build over the posed triangles, rebuilt only when they move.
+
+use super::device::Gpu;
+use super::kdtree::GpuTree;
+use super::whitted::{GpuScene, GpuWhitted};
+use crate::accel::{BuildParams, KdTree, Ray};
+use crate::error::Result;
+use crate::output::Image;
+use crate::render::{EyeCamera, FilmParams, TILE, TraceSettings, pixel_sample};
+use crate::scene::light::Light;
+use crate::scene::material::{Material, Texture};
+use crate::scene::pose::Geometry;
+use glam::{Vec2, Vec3};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Camera rays per batch: 2^20 rays hold 32 MiB of rays and 16 MiB of radiance.
+const BATCH_RAYS: usize = 1 << 20;
+
+/// The adapter, the compiled integrator, and the tree of the last frame's triangles.
+pub struct GpuFrames {
+    gpu: Gpu,
+    whitted: GpuWhitted,
+    resident: Option<(Vec<Vec3>, GpuTree)>,
+}
+
+/// A view to trace: its camera and film.
+pub struct GpuView<'a> {
+    pub camera: &'a EyeCamera,
+    pub film: FilmParams,
+}
+
+/// A posed frame's surfaces as the integrator reads them.
+pub struct FrameScene<'a> {
+    pub geometry: &'a Geometry,
+    pub materials: &'a [Material],
+    pub textures: &'a [Option<Texture>],
+    pub lights: &'a [Light],
+}
+
+impl GpuFrames {
+    pub fn open() -> Result<GpuFrames> {
+        let gpu = Gpu::open()?;
+        let whitted = GpuWhitted::new(&gpu)?;
+        Ok(GpuFrames {
+            gpu,
+            whitted,
+            resident: None,
+        })
+    }
+
+    /// The adapter, its driver and limits.
+    pub fn describe(&self) -> String {
+        self.gpu.describe()
+    }
+
+    /// Renders `views` (all of one film size and sample count); `on_tile(v)` once per 16x16
+    /// tile of view `v` finished. Once `stop` is set the bands not yet traced stay black.
+    pub fn render(
+        &mut self,
+        scene: &FrameScene,
+        settings: &TraceSettings,
+        views: &[GpuView],
+        on_tile: &dyn Fn(usize),
+        stop: Option<&AtomicBool>,
+    ) -> Result<Vec<Image>> {
+        let g = scene.geometry;
+        if self
+            .resident
+            .as_ref()
+            .is_none_or(|(p, _)| *p != g.positions)
+        {
+            let tree = KdTree::build(g.triangle_list(), BuildParams::default());
+            let on_gpu = GpuTree::upload(&self.gpu, &tree)?;
+            self.resident = Some((g.positions.clone(), on_gpu));
+        }
+        let (_, tree) = self.resident.as_ref().expect("uploaded above");
+        let gpu_scene =
+            GpuScene::upload(&self.gpu, g, scene.materials, scene.textures, scene.lights)?;
+        let first = views.first().expect("at least one view").film;
+        let (w, h, spp) = (first.width, first.height, first.spp as usize);
+        let mut images: Vec<Image> = views.iter().map(|_| Image::new(w, h)).collect();
+        // Bands of whole tile rows, so progress counts tiles as the CPU's does.
+        let per_row = w * spp * views.len();
+        let band = TILE * (BATCH_RAYS / (TILE * per_row).max(1)).max(1);
+        let tiles_x = w.div_ceil(TILE);
+        for y0 in (0..h).step_by(band) {
+            if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+                break;
+            }
+            let y1 = (y0 + band).min(h);
+            let mut rays: Vec<Ray> = Vec::with_capacity((y1 - y0) * per_row);
+            let mut limits = Vec::with_capacity(rays.capacity());
+            for v in views {
+                for y in y0..y1 {
+                    for x in 0..w {
+                        let seed = [(y * w + x) as u32, v.film.frame, v.film.eye_seed];
+                        for s in 0..spp as u32 {
+                            let o = pixel_sample(s, spp as u32, seed);
+                            let f = Vec2::new(x as f32 + o.x, y as f32 + o.y);
+                            let (ray, limit) = v.camera.ray(f.x, f.y);
+                            rays.push(ray);
+                            limits.push(limit);
+                        }
+                    }
+                }
+            }
+            let radiance = self
+                .whitted
+                .radiance(&self.gpu, tree, &gpu_scene, settings, &rays, &limits)?;
+            let mut samples = radiance.chunks(spp);
+            for (image, _) in images.iter_mut().zip(views) {
+                for y in y0..y1 {
+                    for x in 0..w {
+                        let sum = samples
+                            .next()
+                            .expect("one radiance per sample")
+                            .iter()
+                            .fold(Vec3::ZERO, |a, r| a + *r);
+                        image.set(x, y, sum / spp as f32);
+                    }
+                }
+            }
+            for v in 0..views.len() {
+                for _ in 0..tiles_x * (y1 - y0).div_ceil(TILE) {
+                    on_tile(v);
+                }
+            }
+        }
+        Ok(images)
+    }
+}
