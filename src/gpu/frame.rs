@@ -7,13 +7,10 @@
 use super::device::Gpu;
 use super::kdtree::GpuTree;
 use super::whitted::{GpuScene, GpuWhitted};
-use crate::accel::{BuildParams, KdTree, Ray};
+use crate::accel::{BuildParams, Intersect, KdTree, Ray};
 use crate::error::Result;
 use crate::output::Image;
-use crate::render::{EyeCamera, FilmParams, TILE, TraceSettings, pixel_sample};
-use crate::scene::light::Light;
-use crate::scene::material::{Material, Texture};
-use crate::scene::pose::Geometry;
+use crate::render::{RayCounts, Rendered, SceneView, TILE, TraceSettings, ViewFilm, pixel_sample};
 use glam::{Vec2, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -25,20 +22,6 @@ pub struct GpuFrames {
     gpu: Gpu,
     whitted: GpuWhitted,
     resident: Option<(Vec<Vec3>, GpuTree)>,
-}
-
-/// A view to trace: its camera and film.
-pub struct GpuView<'a> {
-    pub camera: &'a EyeCamera,
-    pub film: FilmParams,
-}
-
-/// A posed frame's surfaces as the integrator reads them.
-pub struct FrameScene<'a> {
-    pub geometry: &'a Geometry,
-    pub materials: &'a [Material],
-    pub textures: &'a [Option<Texture>],
-    pub lights: &'a [Light],
 }
 
 impl GpuFrames {
@@ -57,16 +40,18 @@ impl GpuFrames {
         self.gpu.describe()
     }
 
-    /// Renders `views` (all of one film size and sample count); `on_tile(v)` once per 16x16
-    /// tile of view `v` finished. Once `stop` is set the bands not yet traced stay black.
-    pub fn render(
+    /// Renders `views` (plain views of one film size and sample count, as `render_views` takes
+    /// them); `on_tile(v)` once per 16x16 tile of view `v` finished. Once `stop` is set the
+    /// bands not yet traced stay black. It counts camera rays only: shadow and secondary rays
+    /// stay on the GPU uncounted.
+    pub fn render<A: Intersect>(
         &mut self,
-        scene: &FrameScene,
+        scene: &SceneView<A>,
         settings: &TraceSettings,
-        views: &[GpuView],
-        on_tile: &dyn Fn(usize),
+        views: &[ViewFilm],
+        on_tile: &(dyn Fn(usize) + Sync),
         stop: Option<&AtomicBool>,
-    ) -> Result<Vec<Image>> {
+    ) -> Result<Rendered> {
         let g = scene.geometry;
         if self
             .resident
@@ -130,6 +115,14 @@ impl GpuFrames {
                 }
             }
         }
-        Ok(images)
+        let camera_rays = (w * h * spp * views.len()) as u64;
+        Ok(Rendered {
+            images,
+            counts: RayCounts {
+                primary: camera_rays,
+                ..Default::default()
+            },
+            samples: Vec::new(),
+        })
     }
 }

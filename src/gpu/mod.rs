@@ -13,6 +13,6 @@ mod kdtree;
 mod whitted;
 
 pub use device::{ADAPTER_VAR, Gpu};
-pub use frame::{FrameScene, GpuFrames, GpuView};
+pub use frame::GpuFrames;
 pub use kdtree::{GpuRays, GpuTracer, GpuTree, GpuWalk};
 pub use whitted::{GpuScene, GpuWhitted};

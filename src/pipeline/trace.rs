@@ -422,8 +422,7 @@ impl<'p> FrameTracer<'p> {
         Ok((traced, stats))
     }
 
-    /// `films` traced on the GPU, which is opened (and named) on first use. It counts camera
-    /// rays only: shadow and secondary rays stay on the GPU uncounted.
+    /// `films` traced on the GPU, which is opened on first use.
     #[cfg(feature = "gpu")]
     fn gpu_views<A: Intersect>(
         &mut self,
@@ -432,37 +431,11 @@ impl<'p> FrameTracer<'p> {
         films: &[ViewFilm],
         on_tile: &(dyn Fn(usize) + Sync),
     ) -> Result<Rendered> {
-        use crate::gpu::{FrameScene, GpuFrames, GpuView};
-        if self.gpu.is_none() {
-            self.gpu = Some(GpuFrames::open()?);
-        }
-        let gpu = self.gpu.as_mut().expect("opened above");
-        let views: Vec<GpuView> = films
-            .iter()
-            .map(|f| GpuView {
-                camera: f.camera,
-                film: f.film,
-            })
-            .collect();
-        let frame = FrameScene {
-            geometry: scene.geometry,
-            materials: scene.materials,
-            textures: scene.textures,
-            lights: scene.lights,
+        let gpu = match &mut self.gpu {
+            Some(g) => g,
+            None => self.gpu.insert(crate::gpu::GpuFrames::open()?),
         };
-        let images = gpu.render(&frame, settings, &views, on_tile, self.stop)?;
-        let primary = films
-            .iter()
-            .map(|f| (f.film.width * f.film.height) as u64 * f.film.spp as u64)
-            .sum();
-        Ok(Rendered {
-            images,
-            counts: RayCounts {
-                primary,
-                ..Default::default()
-            },
-            samples: Vec::new(),
-        })
+        gpu.render(scene, settings, films, on_tile, self.stop)
     }
 
     #[cfg(not(feature = "gpu"))]
