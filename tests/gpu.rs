@@ -452,7 +452,9 @@ mod on_gpu {
                 shard: None,
                 resume: false,
             };
-            run(&p, &opts).unwrap();
+            let summary = run(&p, &opts).unwrap();
+            // The summary names the adapter that traced (and only when one did).
+            assert_eq!(summary.device.is_some(), backend == "gpu", "{summary}");
             eyes.push(read_views(&out.join("out/whitted_0000.exr")).unwrap());
         }
         let rule = Thresholds {

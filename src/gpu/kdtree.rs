@@ -1,5 +1,5 @@
 //! The CPU's kd-tree on the GPU: its arrays uploaded as they are (`accel::TreeArrays`), rays in a
-//! storage buffer, one compute invocation per ray (`kdtree.wgsl`), hits read back. Closest hit
+//! storage buffer, one compute invocation per ray (`walk.wgsl`, `rays.wgsl`), hits read back. Closest hit
 //! and any hit, each with three published GPU walks (`GpuWalk`).
 
 use super::buffers::{
@@ -47,7 +47,7 @@ impl GpuWalk {
     }
 }
 
-/// A ray as the shader reads it (32 bytes, `Ray` in `kdtree.wgsl`).
+/// A ray as the shaders read it (32 bytes, `Ray` in `rays.wgsl` and `whitted.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 pub(super) struct GpuRay {

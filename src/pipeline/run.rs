@@ -57,6 +57,8 @@ pub struct RunSummary {
     pub notes: Vec<String>,
     /// The frames' parallax against the depth budget (stereo rigs).
     pub depth: DepthSummary,
+    /// The GPU adapter that traced, with its driver and limits (`backend = "gpu"`).
+    pub device: Option<String>,
 }
 
 impl fmt::Display for RunSummary {
@@ -91,6 +93,13 @@ impl fmt::Display for RunSummary {
             r.total() as f64 * 1e-6 / self.trace_seconds.max(1e-9),
             self.output_seconds,
         )?;
+        if let Some(d) = &self.device {
+            // The GPU's shadow and secondary rays stay uncounted, so the rate is camera rays'.
+            write!(
+                f,
+                "\ntraced on the GPU (rays counted: camera rays only): {d}"
+            )?;
+        }
         let depth = self.depth.to_string();
         if !depth.is_empty() {
             write!(f, "\n{depth}")?;
@@ -335,6 +344,7 @@ fn run_frames(
             break;
         }
         summary.trace_seconds += stats.trace_seconds();
+        summary.device = summary.device.or_else(|| tracer.device());
         summary.rays.add(&stats.rays);
         summary.eyes_traced += stats.view_seconds.len();
         if let Some(rig) = &stats.rig {

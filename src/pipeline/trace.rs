@@ -422,6 +422,14 @@ impl<'p> FrameTracer<'p> {
         Ok((traced, stats))
     }
 
+    /// The GPU adapter tracing this pipeline's frames, with its driver and limits, once opened.
+    pub fn device(&self) -> Option<String> {
+        #[cfg(feature = "gpu")]
+        return self.gpu.as_ref().map(|g| g.describe());
+        #[cfg(not(feature = "gpu"))]
+        None
+    }
+
     /// `films` traced on the GPU, which is opened on first use.
     #[cfg(feature = "gpu")]
     fn gpu_views<A: Intersect>(
