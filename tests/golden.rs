@@ -8,7 +8,7 @@ mod common;
 use common::{repo, scratch};
 use stereotrace::compare::{Thresholds, Verdict, compare_files};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, run};
+use stereotrace::pipeline::run::run;
 
 #[test]
 fn whitted_clip_matches_its_stored_frames() {
@@ -20,15 +20,7 @@ fn whitted_clip_matches_its_stored_frames() {
     } else {
         scratch("golden-whitted")
     };
-    let opts = RunOptions {
-        frames: None,
-        threads: None,
-        out_dir: out.clone(),
-        progress: false,
-        shard: None,
-        resume: false,
-    };
-    let summary = run(&pipeline, &opts).unwrap();
+    let summary = run(&pipeline, &common::whole_range_into(&out)).unwrap();
     assert_eq!(summary.frames, 3);
     if bless {
         println!(

@@ -432,7 +432,7 @@ mod on_gpu {
         use stereotrace::compare::{Planes, Thresholds, Verdict, compare};
         use stereotrace::output::exr::read_views;
         use stereotrace::pipeline::LoadedPipeline;
-        use stereotrace::pipeline::run::{RunOptions, run};
+        use stereotrace::pipeline::run::run;
         if gpu().is_none() {
             return;
         }
@@ -444,15 +444,7 @@ mod on_gpu {
                 .with_overrides(&[("render.backend".into(), backend.into())])
                 .unwrap();
             let out = super::common::scratch(&format!("default-{backend}"));
-            let opts = RunOptions {
-                frames: None,
-                threads: None,
-                out_dir: out.clone(),
-                progress: false,
-                shard: None,
-                resume: false,
-            };
-            let summary = run(&p, &opts).unwrap();
+            let summary = run(&p, &super::common::whole_range_into(&out)).unwrap();
             // The summary names the adapter that traced (and only when one did).
             assert_eq!(summary.device.is_some(), backend == "gpu", "{summary}");
             eyes.push(read_views(&out.join("out/whitted_0000.exr")).unwrap());

@@ -74,19 +74,20 @@ pub fn render_reference_on(dir: &Path, backend: &str) -> Vec<(String, Image)> {
     let out = scratch(&format!("ref-{name}-{backend}"));
     let pipeline = reference_pipeline_on(dir, &out, backend);
     let p = LoadedPipeline::load(&pipeline).unwrap();
-    run(
-        &p,
-        &RunOptions {
-            frames: None,
-            threads: None,
-            out_dir: out.clone(),
-            progress: false,
-            shard: None,
-            resume: false,
-        },
-    )
-    .unwrap();
+    run(&p, &whole_range_into(&out)).unwrap();
     stereotrace::output::exr::read_views(&out.join("ours.exr")).unwrap()
+}
+
+/// Options that render a pipeline's whole range into `out`, with no progress bars.
+pub fn whole_range_into(out: &Path) -> RunOptions {
+    RunOptions {
+        frames: None,
+        threads: None,
+        out_dir: out.to_path_buf(),
+        progress: false,
+        shard: None,
+        resume: false,
+    }
 }
 
 /// OpenImageIO's command-line tools folder and a Python that imports `OpenImageIO`: from
