@@ -523,4 +523,34 @@ mod on_gpu {
         );
         assert!(!dir.join("f_left.png").exists());
     }
+
+    /// A frame uploads only what changed: the static default scene uploads its tree and
+    /// surfaces once for three frames; the animated scene, whose glass sphere moves every frame,
+    /// a tree and surfaces per frame.
+    #[test]
+    fn frames_upload_only_what_changed() {
+        use stereotrace::pipeline::{FrameTracer, LoadedPipeline};
+        if gpu().is_none() {
+            return;
+        }
+        let repo = super::common::repo();
+        let dir = super::common::scratch("gpu-uploads");
+        for (scene, expected) in [("whitted.gltf", (1, 1)), ("whitted_animated.gltf", (3, 3))] {
+            let file = dir.join(format!("{scene}.toml"));
+            std::fs::write(
+                &file,
+                format!(
+                    "[scene]\npath = {:?}\n[render]\nbackend = \"gpu\"\nwidth = 64\nheight = 36\nspp = 1\n[frames]\nstart = 0\nend = 2\n[[output]]\nkind = \"png\"\npath = \"f_{{frame}}_{{eye}}.png\"\n",
+                    repo.join("scenes").join(scene)
+                ),
+            )
+            .unwrap();
+            let p = LoadedPipeline::load(&file).unwrap();
+            let mut tracer = FrameTracer::new(&p);
+            for frame in 0..3 {
+                tracer.trace(frame, &p.rig_views(), &|_| {}).unwrap();
+            }
+            assert_eq!(tracer.gpu_uploads(), Some(expected), "{scene}");
+        }
+    }
 }

@@ -2,7 +2,7 @@
 //! the CPU's (`render::pixel_sample` and `EyeCamera::ray`, so both backends sample the same film
 //! points), every view's rays of a band of rows go in one batch, and each pixel is the mean of
 //! its samples summed in sample order, as `render/frame.rs` does. The kd-tree is the CPU's
-//! binned SAH build over the posed triangles, rebuilt only when they move.
+//! binned SAH build over the posed triangles, rebuilt and uploaded only when they move.
 
 use super::device::Gpu;
 use super::kdtree::GpuTree;
@@ -11,17 +11,30 @@ use crate::accel::{BuildParams, Intersect, KdTree, Ray};
 use crate::error::Result;
 use crate::output::Image;
 use crate::render::{RayCounts, Rendered, SceneView, TILE, TraceSettings, ViewFilm, pixel_sample};
+use crate::scene::Light;
 use glam::{Vec2, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Camera rays per batch: 2^20 rays hold 32 MiB of rays and 16 MiB of radiance.
 const BATCH_RAYS: usize = 1 << 20;
 
-/// The adapter, the compiled integrator, and the tree of the last frame's triangles.
+/// The adapter, the compiled integrator, and what the last frame uploaded.
 pub struct GpuFrames {
     gpu: Gpu,
     whitted: GpuWhitted,
-    resident: Option<(Vec<Vec3>, GpuTree)>,
+    resident: Option<Resident>,
+    /// Trees and surface sets uploaded so far.
+    uploads: (usize, usize),
+}
+
+/// A frame's tree and surfaces on the GPU, with what they were made from: a frame uploads again
+/// only what changed (a static scene uploads once for the whole range; moving lights upload
+/// the surfaces again, moving triangles the tree too).
+struct Resident {
+    positions: Vec<Vec3>,
+    lights: Vec<Light>,
+    tree: GpuTree,
+    scene: GpuScene,
 }
 
 impl GpuFrames {
@@ -32,12 +45,18 @@ impl GpuFrames {
             gpu,
             whitted,
             resident: None,
+            uploads: (0, 0),
         })
     }
 
     /// The adapter, its driver and limits.
     pub fn describe(&self) -> String {
         self.gpu.describe()
+    }
+
+    /// The kd-trees and the sets of surfaces uploaded so far.
+    pub fn uploads(&self) -> (usize, usize) {
+        self.uploads
     }
 
     /// Renders `views` (plain views of one film size and sample count, as `render_views` takes
@@ -53,18 +72,39 @@ impl GpuFrames {
         stop: Option<&AtomicBool>,
     ) -> Result<Rendered> {
         let g = scene.geometry;
-        if self
+        let moved = self
             .resident
             .as_ref()
-            .is_none_or(|(p, _)| *p != g.positions)
-        {
-            let tree = KdTree::build(g.triangle_list(), BuildParams::default());
-            let on_gpu = GpuTree::upload(&self.gpu, &tree)?;
-            self.resident = Some((g.positions.clone(), on_gpu));
+            .is_none_or(|r| r.positions != g.positions);
+        let relit = moved
+            || self
+                .resident
+                .as_ref()
+                .is_some_and(|r| r.lights != scene.lights);
+        if moved || relit {
+            let tree = match self.resident.take() {
+                Some(r) if !moved => r.tree,
+                _ => {
+                    self.uploads.0 += 1;
+                    let tree = KdTree::build(g.triangle_list(), BuildParams::default());
+                    GpuTree::upload(&self.gpu, &tree)?
+                }
+            };
+            self.uploads.1 += 1;
+            let surfaces =
+                GpuScene::upload(&self.gpu, g, scene.materials, scene.textures, scene.lights)?;
+            self.resident = Some(Resident {
+                positions: g.positions.clone(),
+                lights: scene.lights.to_vec(),
+                tree,
+                scene: surfaces,
+            });
         }
-        let (_, tree) = self.resident.as_ref().expect("uploaded above");
-        let gpu_scene =
-            GpuScene::upload(&self.gpu, g, scene.materials, scene.textures, scene.lights)?;
+        let Resident {
+            tree,
+            scene: gpu_scene,
+            ..
+        } = self.resident.as_ref().expect("uploaded above");
         let first = views.first().expect("at least one view").film;
         let (w, h, spp) = (first.width, first.height, first.spp as usize);
         let mut images: Vec<Image> = views.iter().map(|_| Image::new(w, h)).collect();
@@ -95,7 +135,7 @@ impl GpuFrames {
             }
             let radiance = self
                 .whitted
-                .radiance(&self.gpu, tree, &gpu_scene, settings, &rays, &limits)?;
+                .radiance(&self.gpu, tree, gpu_scene, settings, &rays, &limits)?;
             let mut samples = radiance.chunks(spp);
             for (image, _) in images.iter_mut().zip(views) {
                 for y in y0..y1 {

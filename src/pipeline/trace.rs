@@ -10,9 +10,8 @@ use crate::error::Result;
 use crate::output::Image;
 use crate::render::{
     Backend, Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ParallaxModel,
-    ProbeCamera, RECORDED_LIGHTS, RayCounts, Rendered, Reprojection, Rig, RigParams, SceneView,
-    SourceSample, TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views,
-    view_window,
+    ProbeCamera, RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample,
+    TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
 };
 use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -396,10 +395,13 @@ impl<'p> FrameTracer<'p> {
                     role,
                 })
                 .collect();
-            let rendered = if on_gpu {
-                self.gpu_views(&integrator.scene, &settings, &films, &|k| on_tile(pass[k]))?
-            } else {
-                render_views(&integrator, &films, &|k| on_tile(pass[k]), self.stop)
+            // Validation refuses backend = "gpu" in a build without it.
+            let rendered = match on_gpu {
+                #[cfg(feature = "gpu")]
+                true => {
+                    self.gpu_views(&integrator.scene, &settings, &films, &|k| on_tile(pass[k]))?
+                }
+                _ => render_views(&integrator, &films, &|k| on_tile(pass[k]), self.stop),
             };
             let secs = t.elapsed().as_secs_f64() / pass.len() as f64;
             stats.rays.add(&rendered.counts);
@@ -430,6 +432,12 @@ impl<'p> FrameTracer<'p> {
         None
     }
 
+    /// The kd-trees and surface sets the GPU backend has uploaded (`None` before it traced).
+    #[cfg(feature = "gpu")]
+    pub fn gpu_uploads(&self) -> Option<(usize, usize)> {
+        self.gpu.as_ref().map(|g| g.uploads())
+    }
+
     /// `films` traced on the GPU, which is opened on first use.
     #[cfg(feature = "gpu")]
     fn gpu_views<A: Intersect>(
@@ -438,26 +446,12 @@ impl<'p> FrameTracer<'p> {
         settings: &TraceSettings,
         films: &[ViewFilm],
         on_tile: &(dyn Fn(usize) + Sync),
-    ) -> Result<Rendered> {
+    ) -> Result<crate::render::Rendered> {
         let gpu = match &mut self.gpu {
             Some(g) => g,
             None => self.gpu.insert(crate::gpu::GpuFrames::open()?),
         };
         gpu.render(scene, settings, films, on_tile, self.stop)
-    }
-
-    #[cfg(not(feature = "gpu"))]
-    fn gpu_views<A: Intersect>(
-        &mut self,
-        _: &SceneView<A>,
-        _: &TraceSettings,
-        _: &[ViewFilm],
-        _: &(dyn Fn(usize) + Sync),
-    ) -> Result<Rendered> {
-        Err(crate::error::Error::Internal(format!(
-            "a pipeline asked for the GPU backend past validation: {}",
-            crate::render::NOT_BUILT
-        )))
     }
 }
 

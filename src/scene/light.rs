@@ -26,7 +26,7 @@ pub struct LightDef {
 }
 
 /// A light placed in the world for one frame.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Light {
     pub kind: LightKind,
     /// `intensity * color`.
