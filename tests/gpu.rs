@@ -100,9 +100,20 @@ mod on_gpu {
         }
     }
 
-    fn check(gpu: &Gpu, tracer: &GpuTracer, tris: Vec<[Vec3; 3]>, rays: &[Ray], walks: &[GpuWalk]) {
+    fn check(
+        gpu: &Gpu,
+        tracer: &GpuTracer,
+        tris: Vec<[Vec3; 3]>,
+        rays: &[Ray],
+        walks: &[GpuWalk],
+        halves: bool,
+    ) {
         let tree = KdTree::build(tris, BuildParams::with_method(SplitMethod::Sah));
-        let on_gpu = GpuTree::upload(gpu, &tree).unwrap();
+        let on_gpu = if halves {
+            GpuTree::upload_in_halves(gpu, &tree).unwrap()
+        } else {
+            GpuTree::upload(gpu, &tree).unwrap()
+        };
         // Every third ray stops short, so limits are checked too.
         let t_max: Vec<f32> = (0..rays.len())
             .map(|i| if i % 3 == 0 { 9.0 } else { f32::INFINITY })
@@ -167,6 +178,7 @@ mod on_gpu {
             tris.clone(),
             &rays(&mut rng, false),
             &GpuWalk::ALL,
+            false,
         );
     }
 
@@ -177,7 +189,32 @@ mod on_gpu {
         let tracer = GpuTracer::new(&gpu).unwrap();
         let mut rng = Rng(9);
         let tris = scene(&mut rng);
-        check(&gpu, &tracer, tris, &rays(&mut rng, true), &GpuWalk::ALL);
+        check(
+            &gpu,
+            &tracer,
+            tris,
+            &rays(&mut rng, true),
+            &GpuWalk::ALL,
+            false,
+        );
+    }
+
+    /// A tree whose arrays do not fit one binding goes in two parts per array; its walks find
+    /// the same hits (every array split at its middle, as a tree over the limit would be).
+    #[test]
+    fn a_tree_in_two_parts_finds_the_same_hits() {
+        let Some(gpu) = gpu() else { return };
+        let tracer = GpuTracer::new(&gpu).unwrap();
+        let mut rng = Rng(13);
+        let tris = scene(&mut rng);
+        check(
+            &gpu,
+            &tracer,
+            tris,
+            &rays(&mut rng, true),
+            &GpuWalk::ALL,
+            true,
+        );
     }
 
     #[test]
@@ -352,7 +389,13 @@ mod on_gpu {
             let g = &posed.geometry;
             let (lo, hi) = g.bounds().unwrap();
             let tree = KdTree::build(g.triangle_list(), BuildParams::default());
-            let on_gpu = GpuTree::upload(&gpu, &tree).unwrap();
+            // Every other scene's tree in two parts per array (the path of a tree over the
+            // binding limit), so that the integrator's bindings of the second parts are checked.
+            let on_gpu = if scenes.iter().position(|s| s == path).unwrap() % 2 == 1 {
+                GpuTree::upload_in_halves(&gpu, &tree).unwrap()
+            } else {
+                GpuTree::upload(&gpu, &tree).unwrap()
+            };
             // The scene's lights, and one of each kind more (the Duck has none of its own).
             let centre = (lo + hi) * 0.5;
             let size = (hi - lo).length();

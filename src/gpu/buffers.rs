@@ -124,14 +124,15 @@ pub const WORKGROUP: usize = 64;
 
 /// Runs `pipeline` over `count` rays in dispatches of at most `per_dispatch` (a multiple of
 /// `WORKGROUP`), all in one submission, and waits; the seconds from submission to completion.
-/// Bindings 0-4 are `first`, 5 the dispatch's uniform (`uniform(first ray, rays)`), 6 on `rest`.
+/// Bindings 0-4 are `first`, 5 the dispatch's uniform (`uniform(first ray, rays)`), then `rest`
+/// at the bindings it names.
 pub fn dispatch_rays(
     gpu: &Gpu,
     pipeline: &wgpu::ComputePipeline,
     (count, per_dispatch): (usize, usize),
     uniform: impl Fn(usize, usize) -> Vec<u8>,
     first: &[&wgpu::Buffer; 5],
-    rest: &[&wgpu::Buffer],
+    rest: &[(u32, &wgpu::Buffer)],
 ) -> Result<f64> {
     let layout = pipeline.get_bind_group_layout(0);
     let groups: Vec<(wgpu::BindGroup, u32)> = (0..count)
@@ -149,10 +150,11 @@ pub fn dispatch_rays(
                 .iter()
                 .copied()
                 .chain([&params])
-                .chain(rest.iter().copied())
                 .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
+                .map(|(i, b)| (i as u32, b))
+                .chain(rest.iter().copied())
+                .map(|(binding, b)| wgpu::BindGroupEntry {
+                    binding,
                     resource: b.as_entire_binding(),
                 })
                 .collect();

@@ -82,15 +82,67 @@ pub struct GpuTree {
     pub(super) nodes: wgpu::Buffer,
     pub(super) prim_refs: wgpu::Buffer,
     pub(super) triangles: wgpu::Buffer,
+    /// The second parts of the three arrays (bindings 13-15): an array larger than the adapter
+    /// binds in one buffer continues here; otherwise a placeholder the walk never reads.
+    pub(super) rest: [wgpu::Buffer; 3],
     /// The root's box; `None` for a tree nothing can hit.
     pub(super) bounds: Option<([f32; 3], [f32; 3])>,
     /// Bytes uploaded.
     pub bytes: u64,
 }
 
+/// `items` in one storage buffer when they fit `limit` bytes, else in two (split between
+/// elements, each within the limit; `limit` 0 splits at the middle, for tests); the second is a
+/// one-element placeholder when unused. More than twice the limit is refused.
+fn two_parts<T: Pod>(
+    gpu: &Gpu,
+    what: &str,
+    items: &[T],
+    limit: u64,
+) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+    let none = wgpu::BufferUsages::empty();
+    let size = std::mem::size_of::<T>();
+    let whole = (items.len() * size) as u64;
+    if limit > 0 && whole <= limit {
+        let placeholder = vec![0u8; size];
+        return Ok((
+            storage(gpu, what, bytemuck::cast_slice(items), none)?,
+            storage(gpu, what, &placeholder, none)?,
+        ));
+    }
+    let first = if limit == 0 {
+        items.len().div_ceil(2)
+    } else {
+        ((limit / size as u64) as usize).min(items.len())
+    };
+    let (a, b) = items.split_at(first);
+    if b.is_empty() {
+        let placeholder = vec![0u8; size];
+        return Ok((
+            storage(gpu, what, bytemuck::cast_slice(a), none)?,
+            storage(gpu, what, &placeholder, none)?,
+        ));
+    }
+    Ok((
+        storage(gpu, what, bytemuck::cast_slice(a), none)?,
+        storage(gpu, what, bytemuck::cast_slice(b), none)?,
+    ))
+}
+
 impl GpuTree {
-    /// Uploads the tree's arrays unchanged: the shader decodes the CPU's node words.
+    /// Uploads the tree's arrays unchanged: the shader decodes the CPU's node words. An array
+    /// larger than the adapter binds in one buffer goes in two.
     pub fn upload(gpu: &Gpu, tree: &KdTree) -> Result<GpuTree> {
+        Self::upload_parts(gpu, tree, false)
+    }
+
+    /// `upload` with every array split in two halves whatever its size: the path a tree larger
+    /// than the binding limit takes, for testing it on a small one.
+    pub fn upload_in_halves(gpu: &Gpu, tree: &KdTree) -> Result<GpuTree> {
+        Self::upload_parts(gpu, tree, true)
+    }
+
+    fn upload_parts(gpu: &Gpu, tree: &KdTree, halves: bool) -> Result<GpuTree> {
         let a = tree.arrays();
         let nodes: Vec<[u32; 2]> = a.nodes.iter().map(|n| n.words()).collect();
         let triangles: Vec<[f32; 9]> = a
@@ -101,25 +153,28 @@ impl GpuTree {
                 [p[0], p[1], p[2], q[0], q[1], q[2], r[0], r[1], r[2]]
             })
             .collect();
-        let none = wgpu::BufferUsages::empty();
-        let nodes = storage(
-            gpu,
-            "the kd-tree's nodes",
-            bytemuck::cast_slice(&nodes),
-            none,
-        )?;
-        let prim_refs = storage(
-            gpu,
-            "the kd-tree's leaf references",
-            bytemuck::cast_slice(a.prim_refs),
-            none,
-        )?;
-        let triangles = storage(gpu, "the triangles", bytemuck::cast_slice(&triangles), none)?;
-        let bytes = nodes.size() + prim_refs.size() + triangles.size();
+        let limit = if halves {
+            0
+        } else {
+            gpu.limits
+                .max_storage_buffer_binding_size
+                .min(gpu.limits.max_buffer_size)
+        };
+        let (nodes, nodes_rest) = two_parts(gpu, "the kd-tree's nodes", &nodes, limit)?;
+        let (prim_refs, refs_rest) =
+            two_parts(gpu, "the kd-tree's leaf references", a.prim_refs, limit)?;
+        let (triangles, tris_rest) = two_parts(gpu, "the triangles", &triangles, limit)?;
+        let rest = [nodes_rest, refs_rest, tris_rest];
+        let bytes = [&nodes, &prim_refs, &triangles]
+            .into_iter()
+            .chain(&rest)
+            .map(|b| b.size())
+            .sum();
         Ok(GpuTree {
             nodes,
             prim_refs,
             triangles,
+            rest,
             bounds: (!a.bounds.is_empty() && !a.nodes.is_empty())
                 .then(|| (a.bounds.min.to_array(), a.bounds.max.to_array())),
             bytes,
@@ -331,7 +386,12 @@ impl GpuTracer {
             (rays.count, DISPATCH_RAYS),
             uniform,
             &bindings,
-            &[&rays.work],
+            &[
+                (6, &rays.work),
+                (13, &tree.rest[0]),
+                (14, &tree.rest[1]),
+                (15, &tree.rest[2]),
+            ],
         )
     }
 

@@ -34,6 +34,35 @@ struct Entry {
 @group(0) @binding(0) var<storage, read> nodes: array<vec2<u32>>;
 @group(0) @binding(1) var<storage, read> prim_refs: array<u32>;
 @group(0) @binding(2) var<storage, read> tris: array<f32>;
+// Where an array is larger than the adapter binds in one buffer, its second part (else a
+// placeholder never read): an index past the first part's length continues here.
+@group(0) @binding(13) var<storage, read> nodes_rest: array<vec2<u32>>;
+@group(0) @binding(14) var<storage, read> prim_refs_rest: array<u32>;
+@group(0) @binding(15) var<storage, read> tris_rest: array<f32>;
+
+fn node_at(i: u32) -> vec2<u32> {
+    let n = arrayLength(&nodes);
+    if i < n {
+        return nodes[i];
+    }
+    return nodes_rest[i - n];
+}
+
+fn prim_at(i: u32) -> u32 {
+    let n = arrayLength(&prim_refs);
+    if i < n {
+        return prim_refs[i];
+    }
+    return prim_refs_rest[i - n];
+}
+
+fn tri_at(i: u32) -> f32 {
+    let n = arrayLength(&tris);
+    if i < n {
+        return tris[i];
+    }
+    return tris_rest[i - n];
+}
 
 const NO_PRIM: u32 = 0xffffffffu;
 
@@ -65,7 +94,7 @@ fn shear_of(d: vec3<f32>) -> Shear {
 }
 
 fn vertex(i: u32) -> vec3<f32> {
-    return vec3<f32>(tris[3u * i], tris[3u * i + 1u], tris[3u * i + 2u]);
+    return vec3<f32>(tri_at(3u * i), tri_at(3u * i + 1u), tri_at(3u * i + 2u));
 }
 
 // The vertex relative to the origin, sheared so the ray runs along +z.
@@ -204,7 +233,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
         if best < t_min {
             break;
         }
-        let n = nodes[node];
+        let n = node_at(node);
         if (n.y & 3u) == 3u {
             let first = n.x;
             let end = first + (n.y >> 2u);
@@ -212,7 +241,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
             tally.y += 1u;
             for (var i = first; i < end; i++) {
                 tally.z += 1u;
-                let p = prim_refs[i];
+                let p = prim_at(i);
                 let h = intersect(p, o, sh, best);
                 if h.x > 0.0 {
                     best = h.x;

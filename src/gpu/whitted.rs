@@ -329,13 +329,16 @@ impl GpuWhitted {
             &out,
         ];
         let rest = [
-            &scene.vertices,
-            &scene.triangles,
-            &scene.materials,
-            &scene.lights,
-            &scene.textures,
-            &scene.texels,
-            &pending,
+            (6, &scene.vertices),
+            (7, &scene.triangles),
+            (8, &scene.materials),
+            (9, &scene.lights),
+            (10, &scene.textures),
+            (11, &scene.texels),
+            (12, &pending),
+            (13, &tree.rest[0]),
+            (14, &tree.rest[1]),
+            (15, &tree.rest[2]),
         ];
         dispatch_rays(
             gpu,
