@@ -102,7 +102,7 @@ fn two_parts<T: Pod>(
 ) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
     let none = wgpu::BufferUsages::empty();
     let size = std::mem::size_of::<T>();
-    let whole = (items.len() * size) as u64;
+    let whole = std::mem::size_of_val(items) as u64;
     if limit > 0 && whole <= limit {
         let placeholder = vec![0u8; size];
         return Ok((
