@@ -439,7 +439,7 @@ mod on_gpu {
                     settings,
                 };
                 let counts = std::cell::Cell::new(Default::default());
-                let got = whitted
+                let (got, _) = whitted
                     .radiance(&gpu, &on_gpu, &gpu_scene, &settings, &rays, &t_max)
                     .unwrap();
                 let (mut over, mut sum, mut worst) = (0, 0.0f64, 0.0f32);
@@ -481,7 +481,7 @@ mod on_gpu {
         }
         let base =
             LoadedPipeline::load(&super::common::repo().join("pipelines/default.toml")).unwrap();
-        let mut eyes = Vec::new();
+        let (mut eyes, mut counts) = (Vec::new(), Vec::new());
         for backend in ["cpu", "gpu"] {
             let p = base
                 .with_overrides(&[("render.backend".into(), backend.into())])
@@ -490,7 +490,18 @@ mod on_gpu {
             let summary = run(&p, &super::common::whole_range_into(&out)).unwrap();
             // The summary names the adapter that traced (and only when one did).
             assert_eq!(summary.device.is_some(), backend == "gpu", "{summary}");
+            counts.push(summary.rays);
             eyes.push(read_views(&out.join("out/whitted_0000.exr")).unwrap());
+        }
+        // The same rays, counted the same way on both (paths differ only where a sample's does).
+        let (cpu, gpu) = (counts[0], counts[1]);
+        eprintln!("rays: CPU {cpu:?}, GPU {gpu:?}");
+        assert_eq!(cpu.primary, gpu.primary);
+        for (c, g) in [(cpu.secondary, gpu.secondary), (cpu.shadow, gpu.shadow)] {
+            assert!(
+                c > 0 && c.abs_diff(g) * 1000 <= c,
+                "rays: CPU {cpu:?}, GPU {gpu:?}"
+            );
         }
         let rule = Thresholds {
             fail: 0.02,

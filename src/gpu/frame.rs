@@ -61,8 +61,7 @@ impl GpuFrames {
 
     /// Renders `views` (plain views of one film size and sample count, as `render_views` takes
     /// them); `on_tile(v)` once per 16x16 tile of view `v` finished. Once `stop` is set the
-    /// bands not yet traced stay black. It counts camera rays only: shadow and secondary rays
-    /// stay on the GPU uncounted.
+    /// bands not yet traced stay black. Rays are counted as the CPU counts them.
     pub fn render<A: Intersect>(
         &mut self,
         scene: &SceneView<A>,
@@ -112,6 +111,7 @@ impl GpuFrames {
         let per_row = w * spp * views.len();
         let band = TILE * (BATCH_RAYS / (TILE * per_row).max(1)).max(1);
         let tiles_x = w.div_ceil(TILE);
+        let mut counts = RayCounts::default();
         for y0 in (0..h).step_by(band) {
             if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 break;
@@ -133,9 +133,12 @@ impl GpuFrames {
                     }
                 }
             }
-            let radiance = self
+            let (radiance, [secondary, shadow]) = self
                 .whitted
                 .radiance(&self.gpu, tree, gpu_scene, settings, &rays, &limits)?;
+            counts.primary += rays.len() as u64;
+            counts.secondary += secondary;
+            counts.shadow += shadow;
             let mut samples = radiance.chunks(spp);
             for (image, _) in images.iter_mut().zip(views) {
                 for y in y0..y1 {
@@ -155,13 +158,9 @@ impl GpuFrames {
                 }
             }
         }
-        let camera_rays = (w * h * spp * views.len()) as u64;
         Ok(Rendered {
             images,
-            counts: RayCounts {
-                primary: camera_rays,
-                ..Default::default()
-            },
+            counts,
             samples: Vec::new(),
         })
     }

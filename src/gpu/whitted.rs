@@ -251,7 +251,8 @@ impl GpuWhitted {
         Ok(GpuWhitted { pipeline })
     }
 
-    /// The radiance along each camera ray (`Integrator::radiance` on the CPU), with its limit.
+    /// The radiance along each camera ray (`Integrator::radiance` on the CPU), with its limit,
+    /// and the secondary and shadow rays traced for them.
     pub fn radiance(
         &self,
         gpu: &Gpu,
@@ -260,10 +261,10 @@ impl GpuWhitted {
         settings: &TraceSettings,
         rays: &[Ray],
         t_max: &[f32],
-    ) -> Result<Vec<Vec3>> {
+    ) -> Result<(Vec<Vec3>, [u64; 2])> {
         assert_eq!(rays.len(), t_max.len(), "one limit per ray");
         if rays.is_empty() {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), [0; 2]));
         }
         let packed: Vec<GpuRay> = rays
             .iter()
@@ -284,6 +285,13 @@ impl GpuWhitted {
             wgpu::BufferUsages::COPY_SRC,
         )?;
         let back = readback(gpu, "the radiance's read-back buffer", out.size())?;
+        let counts = storage(
+            gpu,
+            "the ray counts",
+            &vec![0u8; 8 * rays.len().div_ceil(WORKGROUP)],
+            wgpu::BufferUsages::COPY_SRC,
+        )?;
+        let counts_back = readback(gpu, "the ray counts' read-back buffer", counts.size())?;
         // Each invocation's waiting rays: one per level and the one traced (48 bytes each), for
         // as many rays per dispatch as fit the adapter's binding limit, at most 2^16.
         let stride = settings.max_depth + 1;
@@ -339,6 +347,7 @@ impl GpuWhitted {
             (13, &tree.rest[0]),
             (14, &tree.rest[1]),
             (15, &tree.rest[2]),
+            (16, &counts),
         ];
         dispatch_rays(
             gpu,
@@ -348,9 +357,15 @@ impl GpuWhitted {
             &first,
             &rest,
         )?;
-        read_back(gpu, &out, &back, |bytes| {
+        let radiance = read_back(gpu, &out, &back, |bytes| {
             let raw: &[[f32; 4]] = bytemuck::cast_slice(bytes);
             raw.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect()
-        })
+        })?;
+        let traced = read_back(gpu, &counts, &counts_back, |bytes| {
+            let raw: &[[u32; 2]] = bytemuck::cast_slice(bytes);
+            raw.iter()
+                .fold([0u64; 2], |[a, b], c| [a + c[0] as u64, b + c[1] as u64])
+        })?;
+        Ok((radiance, traced))
     }
 }

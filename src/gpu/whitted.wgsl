@@ -89,6 +89,11 @@ struct Texture {
 // In storage rather than a private array: a private array indexed at run time made Mesa's
 // lavapipe spend minutes compiling the shader.
 @group(0) @binding(12) var<storage, read_write> pending: array<Pending>;
+// Per workgroup of camera rays: the secondary (mirror and refraction) and shadow rays traced,
+// as the CPU's `RayCounts` counts them (summed on the host).
+@group(0) @binding(16) var<storage, read_write> ray_counts: array<atomic<u32>>;
+
+var<private> shadow_rays: u32;
 
 const PI: f32 = 3.14159265358979;
 // Shadow rays stop this fraction short of the light (integrator.rs `SHADOW_EPSILON`).
@@ -253,6 +258,7 @@ fn direct_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, v: vec3<f32>, base: v
         if n_l <= 0.0 || dot(ng, l) <= 0.0 || all(irradiance == vec3<f32>(0.0)) {
             continue;
         }
+        shadow_rays += 1u;
         if hit_anything(origin, shadow_dir, t_max) {
             continue;
         }
@@ -270,7 +276,10 @@ struct Pending {
 }
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(workgroup_id) group: vec3<u32>,
+) {
     if gid.x >= frame.count {
         return;
     }
@@ -281,9 +290,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var size = 1u;
     pending[first_slot] = Pending(camera.origin, camera.t_max, camera.dir, 1u, vec3<f32>(1.0));
     var total = vec3<f32>(0.0);
+    var secondary = 0u;
     while size > 0u {
         size -= 1u;
         let ray = pending[first_slot + size];
+        secondary += select(0u, 1u, ray.depth > 1u);
         let hit = walk(ray.origin, ray.dir, ray.t_max, frame.bounds_min, frame.bounds_max, false);
         if hit.prim == NO_PRIM {
             total += ray.weight * frame.background;
@@ -357,4 +368,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         size += 1u;
     }
     radiance[index] = vec4<f32>(total, 1.0);
+    let slot = 2u * (frame.first / 64u + group.x);
+    atomicAdd(&ray_counts[slot], secondary);
+    atomicAdd(&ray_counts[slot + 1u], shadow_rays);
 }

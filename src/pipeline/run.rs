@@ -94,11 +94,7 @@ impl fmt::Display for RunSummary {
             self.output_seconds,
         )?;
         if let Some(d) = &self.device {
-            // The GPU's shadow and secondary rays stay uncounted, so the rate is camera rays'.
-            write!(
-                f,
-                "\ntraced on the GPU (rays counted: camera rays only): {d}"
-            )?;
+            write!(f, "\ntraced on the GPU: {d}")?;
         }
         let depth = self.depth.to_string();
         if !depth.is_empty() {
