@@ -57,6 +57,22 @@ pub(super) struct GpuRay {
     pub pad: f32,
 }
 
+impl GpuRay {
+    /// Rays and their limits as the shaders read them. An infinite limit becomes the largest
+    /// float: WGSL lets a compiler assume no value is infinite, and no hit lies beyond it.
+    pub(super) fn batch(rays: &[Ray], t_max: &[f32]) -> Vec<GpuRay> {
+        rays.iter()
+            .zip(t_max)
+            .map(|(r, &t)| GpuRay {
+                origin: r.origin.to_array(),
+                t_max: t.min(f32::MAX),
+                dir: r.dir.to_array(),
+                pad: 0.0,
+            })
+            .collect()
+    }
+}
+
 /// A hit as the shader writes it (`HitOut`); `prim == u32::MAX` is none.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -102,30 +118,22 @@ fn two_parts<T: Pod>(
 ) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
     let none = wgpu::BufferUsages::empty();
     let size = std::mem::size_of::<T>();
-    let whole = std::mem::size_of_val(items) as u64;
-    if limit > 0 && whole <= limit {
-        let placeholder = vec![0u8; size];
-        return Ok((
-            storage(gpu, what, bytemuck::cast_slice(items), none)?,
-            storage(gpu, what, &placeholder, none)?,
-        ));
-    }
+    // Within the limit, the first part takes everything and the second is the placeholder.
     let first = if limit == 0 {
         items.len().div_ceil(2)
     } else {
         ((limit / size as u64) as usize).min(items.len())
     };
     let (a, b) = items.split_at(first);
-    if b.is_empty() {
-        let placeholder = vec![0u8; size];
-        return Ok((
-            storage(gpu, what, bytemuck::cast_slice(a), none)?,
-            storage(gpu, what, &placeholder, none)?,
-        ));
-    }
+    let placeholder = vec![0u8; size];
+    let rest = if b.is_empty() {
+        &placeholder[..]
+    } else {
+        bytemuck::cast_slice(b)
+    };
     Ok((
         storage(gpu, what, bytemuck::cast_slice(a), none)?,
-        storage(gpu, what, bytemuck::cast_slice(b), none)?,
+        storage(gpu, what, rest, none)?,
     ))
 }
 
@@ -196,16 +204,7 @@ pub struct GpuRays {
 impl GpuRays {
     pub fn upload(gpu: &Gpu, rays: &[Ray], t_max: &[f32]) -> Result<GpuRays> {
         assert_eq!(rays.len(), t_max.len(), "one limit per ray");
-        let packed: Vec<GpuRay> = rays
-            .iter()
-            .zip(t_max)
-            .map(|(r, &t)| GpuRay {
-                origin: r.origin.to_array(),
-                t_max: t,
-                dir: r.dir.to_array(),
-                pad: 0.0,
-            })
-            .collect();
+        let packed = GpuRay::batch(rays, t_max);
         let none = wgpu::BufferUsages::empty();
         let ray_buf = storage(gpu, "the rays", bytemuck::cast_slice(&packed), none)?;
         let blank = vec![GpuHit::zeroed(); rays.len()];

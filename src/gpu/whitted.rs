@@ -266,16 +266,7 @@ impl GpuWhitted {
         if rays.is_empty() {
             return Ok((Vec::new(), [0; 2]));
         }
-        let packed: Vec<GpuRay> = rays
-            .iter()
-            .zip(t_max)
-            .map(|(r, &t)| GpuRay {
-                origin: r.origin.to_array(),
-                t_max: t.min(f32::MAX),
-                dir: r.dir.to_array(),
-                pad: 0.0,
-            })
-            .collect();
+        let packed = GpuRay::batch(rays, t_max);
         let none = wgpu::BufferUsages::empty();
         let ray_buf = storage(gpu, "the camera rays", bytemuck::cast_slice(&packed), none)?;
         let out = storage(
