@@ -18,7 +18,7 @@ fn the_gpu_backend_is_built_and_checked() {
 mod on_gpu {
     use glam::Vec3;
     use stereotrace::accel::{BuildParams, Hit, Intersect, KdTree, Ray, SplitMethod};
-    use stereotrace::gpu::{Gpu, GpuRays, GpuTracer, GpuTree, GpuWalk};
+    use stereotrace::gpu::{Gpu, GpuAccel, GpuRays, GpuTracer, GpuWalk};
 
     fn gpu() -> Option<Gpu> {
         super::common::gpu_adapter()
@@ -109,11 +109,12 @@ mod on_gpu {
         halves: bool,
     ) {
         let tree = KdTree::build(tris, BuildParams::with_method(SplitMethod::Sah));
-        let on_gpu = if halves {
-            GpuTree::upload_in_halves(gpu, &tree).unwrap()
+        let mut on_gpu = if halves {
+            GpuAccel::in_halves(gpu).unwrap()
         } else {
-            GpuTree::upload(gpu, &tree).unwrap()
+            GpuAccel::new(gpu).unwrap()
         };
+        on_gpu.upload_tree(gpu, &tree).unwrap();
         // Every third ray stops short, so limits are checked too.
         let t_max: Vec<f32> = (0..rays.len())
             .map(|i| if i % 3 == 0 { 9.0 } else { f32::INFINITY })
@@ -222,7 +223,8 @@ mod on_gpu {
         let Some(gpu) = gpu() else { return };
         let tracer = GpuTracer::new(&gpu).unwrap();
         let empty = KdTree::build(Vec::new(), BuildParams::default());
-        let on_gpu = GpuTree::upload(&gpu, &empty).unwrap();
+        let mut on_gpu = GpuAccel::new(&gpu).unwrap();
+        on_gpu.upload_tree(&gpu, &empty).unwrap();
         let r = [Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z)];
         let batch = GpuRays::upload(&gpu, &r, &[f32::INFINITY]).unwrap();
         tracer
@@ -234,6 +236,125 @@ mod on_gpu {
             .trace(&gpu, &on_gpu, &none, GpuWalk::Stack, true)
             .unwrap();
         assert!(tracer.read_hits(&gpu, &none).unwrap().is_empty());
+    }
+
+    /// A frame's parts on the GPU: static geometry, a rigid instance and a refitted deforming
+    /// mesh, as `accel::Updater` makes them. Every walk finds the CPU's hits (global triangle
+    /// indices included) on the first frame and, after the instance moved and the mesh was
+    /// refitted, on the second, which writes only the refit and the table of parts; a rebuilt
+    /// mesh on the third is written in place or lays the arrays out again.
+    #[test]
+    fn instances_and_refitted_parts_find_the_cpu_hits_frame_after_frame() {
+        use glam::{Mat4, Quat};
+        use std::sync::Arc;
+        use stereotrace::accel::{Part, PrimMap, RefitTree, TwoLevel};
+        let Some(gpu) = gpu() else { return };
+        let tracer = GpuTracer::new(&gpu).unwrap();
+        let mut rng = Rng(21);
+        let mut soup = |n: usize, c: Vec3| -> Vec<[Vec3; 3]> {
+            (0..n)
+                .map(|_| {
+                    let p = c + rng.v(4.0);
+                    [p, p + rng.v(1.0) - 0.5, p + rng.v(1.0) - 0.5]
+                })
+                .collect()
+        };
+        let world = soup(400, Vec3::ZERO);
+        let object = soup(300, Vec3::splat(-2.0));
+        let rest = soup(500, Vec3::new(3.0, 0.0, 1.0));
+        let params = BuildParams::default();
+        let static_tree = Arc::new(KdTree::build(world.clone(), params));
+        let object_tree = Arc::new(KdTree::build(object.clone(), params));
+        let topology = RefitTree::build(rest.clone(), params).topology().clone();
+        let pose = |step: f32| {
+            let place = Mat4::from_scale_rotation_translation(
+                Vec3::splat(1.2 + 0.1 * step),
+                Quat::from_rotation_y(0.5 + step),
+                Vec3::new(2.0 * step, 1.0, -1.0),
+            );
+            let bent: Vec<[Vec3; 3]> = rest
+                .iter()
+                .map(|t| t.map(|v| v + Vec3::new((v.y * 0.7).sin(), 0.0, (v.x * 0.5).cos()) * step))
+                .collect();
+            (place, bent)
+        };
+        let rays: Vec<Ray> = (0..4000)
+            .map(|_| Ray::new(rng.v(16.0) - 6.0, rng.v(2.0) - 1.0))
+            .collect();
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 3 == 0 { 6.0 } else { f32::INFINITY })
+            .collect();
+        let batch = GpuRays::upload(&gpu, &rays, &t_max).unwrap();
+        for halves in [false, true] {
+            let mut on_gpu = if halves {
+                GpuAccel::in_halves(&gpu).unwrap()
+            } else {
+                GpuAccel::new(&gpu).unwrap()
+            };
+            for frame in 0..3 {
+                let (place, bent) = pose(frame as f32);
+                let deforming = if frame < 2 {
+                    Part::refitted(
+                        Arc::new(RefitTree::refit(topology.clone(), bent)),
+                        PrimMap::Offset(700),
+                    )
+                } else {
+                    Part::world(Arc::new(KdTree::build(bent, params)), PrimMap::Offset(700))
+                };
+                let accel = TwoLevel::new(vec![
+                    Part::world(static_tree.clone(), PrimMap::Offset(0)),
+                    Part::instance(object_tree.clone(), PrimMap::Offset(400), place),
+                    deforming,
+                ]);
+                let before = on_gpu.uploads();
+                on_gpu.update(&gpu, &accel, 1200).unwrap();
+                let after = on_gpu.uploads();
+                match frame {
+                    0 => assert_eq!((after.layouts, after.trees, after.refits), (1, 3, 0)),
+                    // The moved instance and the refit: the refit's boxes and triangles and the
+                    // table, nothing of the static tree or the instance's.
+                    1 => {
+                        assert_eq!((after.layouts, after.trees, after.refits), (1, 3, 1));
+                        let boxes = 48 * topology.arrays().nodes.len() as u64;
+                        let written = after.bytes - before.bytes;
+                        assert!(written <= boxes + 36 * 500 + 3 * 144, "{written} bytes");
+                    }
+                    // A kd-tree where the refitted tree was: another kind of tree, so the arrays
+                    // are laid out again, every part written.
+                    _ => assert_eq!((after.layouts, after.trees), (2, 6), "{after:?}"),
+                }
+                let mut differ = Vec::new();
+                for walk in GpuWalk::ALL {
+                    tracer.trace(&gpu, &on_gpu, &batch, walk, false).unwrap();
+                    let closest = tracer.read_hits(&gpu, &batch).unwrap();
+                    tracer.trace(&gpu, &on_gpu, &batch, walk, true).unwrap();
+                    let any = tracer.read_hits(&gpu, &batch).unwrap();
+                    for (i, r) in rays.iter().enumerate() {
+                        let cpu = accel.closest_hit(r, t_max[i]);
+                        let occluded = accel.any_hit(r, t_max[i]);
+                        let same_prim = cpu.map(|h| h.prim) == closest[i].map(|h| h.prim);
+                        if !agree(cpu, closest[i]) || !same_prim || any[i].is_some() != occluded {
+                            differ.push(format!(
+                                "frame {frame} {walk:?} ray {i}: GPU {:?} / {:?}, CPU {cpu:?} / {occluded}",
+                                closest[i], any[i]
+                            ));
+                        }
+                    }
+                }
+                let hits = rays
+                    .iter()
+                    .zip(&t_max)
+                    .filter(|(r, t)| accel.closest_hit(r, **t).is_some_and(|h| h.prim >= 400))
+                    .count();
+                assert!(hits > 200, "rays must hit the moving parts: {hits}");
+                assert!(
+                    differ.len() <= 3,
+                    "halves {halves}: {} differ, first: {:?}",
+                    differ.len(),
+                    differ.first()
+                );
+            }
+        }
     }
 
     fn bench(args: &[&str], adapter: Option<&str>) -> std::process::Output {
@@ -391,11 +512,12 @@ mod on_gpu {
             let tree = KdTree::build(g.triangle_list(), BuildParams::default());
             // Every other scene's tree in two parts per array (the path of a tree over the
             // binding limit), so that the integrator's bindings of the second parts are checked.
-            let on_gpu = if scenes.iter().position(|s| s == path).unwrap() % 2 == 1 {
-                GpuTree::upload_in_halves(&gpu, &tree).unwrap()
+            let mut on_gpu = if scenes.iter().position(|s| s == path).unwrap() % 2 == 1 {
+                GpuAccel::in_halves(&gpu).unwrap()
             } else {
-                GpuTree::upload(&gpu, &tree).unwrap()
+                GpuAccel::new(&gpu).unwrap()
             };
+            on_gpu.upload_tree(&gpu, &tree).unwrap();
             // The scene's lights, and one of each kind more (the Duck has none of its own).
             let centre = (lo + hi) * 0.5;
             let size = (hi - lo).length();
@@ -578,9 +700,11 @@ mod on_gpu {
         assert!(!dir.join("f_left.png").exists());
     }
 
-    /// A frame uploads only what changed: the static default scene uploads its tree and
-    /// surfaces once for three frames; the animated scene, whose glass sphere moves every frame,
-    /// a tree and surfaces per frame.
+    /// A frame uploads only what changed (as (layouts, trees written, refits)): the static
+    /// default scene lays out its tree once for three frames; the animated one, whose glass
+    /// sphere moves rigidly, its static tree and the sphere's object-space tree once, then only
+    /// the sphere's place; a skinned figure under `update = "refit"` its tree once, then its
+    /// refitted boxes every frame, and under `rebuild` a tree every frame.
     #[test]
     fn frames_upload_only_what_changed() {
         use stereotrace::pipeline::{FrameTracer, LoadedPipeline};
@@ -589,13 +713,20 @@ mod on_gpu {
         }
         let repo = super::common::repo();
         let dir = super::common::scratch("gpu-uploads");
-        for (scene, expected) in [("whitted.gltf", (1, 1)), ("whitted_animated.gltf", (3, 3))] {
-            let file = dir.join(format!("{scene}.toml"));
+        let figure = repo.join("tests/data/scenes/CesiumMan/CesiumMan.glb");
+        for (scene, update, expected) in [
+            (repo.join("scenes/whitted.gltf"), "auto", (1, 1, 0)),
+            (repo.join("scenes/whitted_animated.gltf"), "auto", (1, 2, 0)),
+            (figure.clone(), "refit", (1, 1, 2)),
+            // The second frame's tree outgrows the first's room and lays the arrays out again,
+            // with room to grow; the third's is written in place.
+            (figure, "rebuild", (2, 3, 0)),
+        ] {
+            let file = dir.join("uploads.toml");
             std::fs::write(
                 &file,
                 format!(
-                    "[scene]\npath = {:?}\n[render]\nbackend = \"gpu\"\nwidth = 64\nheight = 36\nspp = 1\n[frames]\nstart = 0\nend = 2\n[[output]]\nkind = \"png\"\npath = \"f_{{frame}}_{{eye}}.png\"\n",
-                    repo.join("scenes").join(scene)
+                    "[scene]\npath = {scene:?}\n[render]\nbackend = \"gpu\"\nwidth = 64\nheight = 36\nspp = 1\n[accel]\nupdate = {update:?}\n[frames]\nstart = 0\nend = 2\n[[output]]\nkind = \"png\"\npath = \"f_{{frame}}_{{eye}}.png\"\n",
                 ),
             )
             .unwrap();
@@ -604,7 +735,13 @@ mod on_gpu {
             for frame in 0..3 {
                 tracer.trace(frame, &p.rig_views(), &|_| {}).unwrap();
             }
-            assert_eq!(tracer.gpu_uploads(), Some(expected), "{scene}");
+            let u = tracer.gpu_uploads().unwrap();
+            eprintln!("{scene:?} {update}: {u:?}");
+            assert_eq!(
+                (u.layouts, u.trees, u.refits),
+                expected,
+                "{scene:?} {update}"
+            );
         }
     }
 }

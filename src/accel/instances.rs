@@ -27,7 +27,7 @@ pub enum PrimMap {
 
 impl PrimMap {
     #[inline]
-    fn global(&self, local: u32) -> u32 {
+    pub fn global(&self, local: u32) -> u32 {
         match self {
             PrimMap::Offset(o) => local + o,
             PrimMap::Table(t) => t[local as usize],
@@ -35,9 +35,27 @@ impl PrimMap {
     }
 }
 
+/// A part's tree: a kd-tree (static geometry, instances, rebuilt deforming meshes) or a bounded
+/// kd-tree refitted to a deforming mesh. Kept as its kind, not as any `Intersect`, so that a
+/// walker elsewhere (the GPU's) can tell what it uploads.
+#[derive(Clone)]
+pub enum PartTree {
+    Kd(Arc<KdTree>),
+    Refit(Arc<RefitTree>),
+}
+
+impl PartTree {
+    fn accel(&self) -> &(dyn Intersect + Send + Sync) {
+        match self {
+            PartTree::Kd(t) => t.as_ref(),
+            PartTree::Refit(t) => t.as_ref(),
+        }
+    }
+}
+
 #[derive(Clone)]
 pub struct Part {
-    pub accel: Arc<dyn Intersect + Send + Sync>,
+    pub tree: PartTree,
     pub map: PrimMap,
     /// World-to-object transform of an instance; `None`: the tree is in world space.
     pub world_to_object: Option<Mat4>,
@@ -50,7 +68,7 @@ impl Part {
     pub fn world(tree: Arc<KdTree>, map: PrimMap) -> Part {
         let bounds = tree.bounds;
         Part {
-            accel: tree,
+            tree: PartTree::Kd(tree),
             map,
             world_to_object: None,
             bounds,
@@ -61,7 +79,7 @@ impl Part {
     pub fn refitted(tree: Arc<RefitTree>, map: PrimMap) -> Part {
         let bounds = tree.bounds();
         Part {
-            accel: tree,
+            tree: PartTree::Refit(tree),
             map,
             world_to_object: None,
             bounds,
@@ -72,7 +90,7 @@ impl Part {
     pub fn instance(tree: Arc<KdTree>, map: PrimMap, object_to_world: Mat4) -> Part {
         let bounds = tree.bounds.transformed(&object_to_world);
         Part {
-            accel: tree,
+            tree: PartTree::Kd(tree),
             map,
             world_to_object: Some(object_to_world.inverse()),
             bounds,
@@ -93,6 +111,18 @@ pub struct TwoLevel {
     pub(super) parts: Vec<Part>,
 }
 
+impl TwoLevel {
+    /// A structure of `parts`, tested in that order.
+    pub fn new(parts: Vec<Part>) -> TwoLevel {
+        TwoLevel { parts }
+    }
+
+    /// The parts, in the order rays test them.
+    pub fn parts(&self) -> &[Part] {
+        &self.parts
+    }
+}
+
 impl Intersect for TwoLevel {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let mut best: Option<Hit> = None;
@@ -104,7 +134,7 @@ impl Intersect for TwoLevel {
             if part.world_to_object.is_some() && part.bounds.clip_ray(ray, limit).is_none() {
                 continue;
             }
-            if let Some(h) = part.accel.closest_hit(&part.local_ray(ray), limit) {
+            if let Some(h) = part.tree.accel().closest_hit(&part.local_ray(ray), limit) {
                 best = Some(Hit {
                     prim: part.map.global(h.prim),
                     ..h
@@ -117,7 +147,7 @@ impl Intersect for TwoLevel {
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
         self.parts.iter().any(|p| {
             (p.world_to_object.is_none() || p.bounds.clip_ray(ray, t_max).is_some())
-                && p.accel.any_hit(&p.local_ray(ray), t_max)
+                && p.tree.accel().any_hit(&p.local_ray(ray), t_max)
         })
     }
 
@@ -128,7 +158,7 @@ impl Intersect for TwoLevel {
             && part.world_to_object.is_none()
         {
             // One world-space part (a static scene) takes every ray as it comes.
-            part.accel.closest_hits(rays, t_max, hits);
+            part.tree.accel().closest_hits(rays, t_max, hits);
             for h in hits.iter_mut().flatten() {
                 h.prim = part.map.global(h.prim);
             }
@@ -145,7 +175,8 @@ impl Intersect for TwoLevel {
                 }
             }
             let mut found: SmallVec<[Option<Hit>; 8]> = smallvec![None; batch.len()];
-            part.accel
+            part.tree
+                .accel()
                 .closest_hits(&batch.rays, &batch.limits, &mut found);
             for (&i, h) in batch.lanes.iter().zip(found) {
                 if let Some(h) = h {
@@ -162,7 +193,7 @@ impl Intersect for TwoLevel {
         if let [part] = &self.parts[..]
             && part.world_to_object.is_none()
         {
-            return part.accel.any_hits(rays, t_max, occluded);
+            return part.tree.accel().any_hits(rays, t_max, occluded);
         }
         occluded.fill(false);
         let mut batch = Batch::default();
@@ -177,7 +208,9 @@ impl Intersect for TwoLevel {
                 }
             }
             let mut found: SmallVec<[bool; 8]> = smallvec![false; batch.len()];
-            part.accel.any_hits(&batch.rays, &batch.limits, &mut found);
+            part.tree
+                .accel()
+                .any_hits(&batch.rays, &batch.limits, &mut found);
             for (&i, o) in batch.lanes.iter().zip(found) {
                 occluded[i] |= o;
             }

@@ -55,9 +55,10 @@ pub(crate) mod test_rng {
 }
 
 pub use aabb::Aabb;
-pub use instances::TwoLevel;
+pub use instances::{Part, PartTree, PrimMap, TwoLevel};
 pub use packet::LANES;
 pub use params::{BuildParams, SplitMethod};
+pub use refit::RefitTree;
 pub use stats::TreeStats;
 pub use traverse::WalkCounts;
 pub use tree::{KdTree, MAX_DEPTH, Node, TreeArrays};

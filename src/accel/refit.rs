@@ -62,6 +62,17 @@ impl RefitTree {
         self.bounds
     }
 
+    /// The triangles as they are now, in the topology's indexing.
+    pub fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+
+    /// Per node of the topology (unused at leaves): the boxes of its below and above subtrees,
+    /// for a walker elsewhere (the GPU's) to upload.
+    pub fn boxes(&self) -> &[[Aabb; 2]] {
+        &self.boxes
+    }
+
     /// SAH cost of the refitted tree with the topology's constants: each node weighted by the
     /// surface area of its box over the root's.
     pub fn sah_cost(&self) -> f64 {

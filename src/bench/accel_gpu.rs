@@ -6,7 +6,7 @@
 use super::accel_table::AccelRow;
 use crate::accel::{Hit, KdTree, Ray};
 use crate::error::Result;
-use crate::gpu::{Gpu, GpuRays, GpuTracer, GpuTree, GpuWalk};
+use crate::gpu::{Gpu, GpuAccel, GpuRays, GpuTracer, GpuWalk};
 
 /// What tracing found: rays that hit (or were occluded) and the sum of their hit distances.
 pub(super) type Found = (u64, f64);
@@ -80,7 +80,8 @@ impl GpuBench {
 
     /// Uploads `tree` and times every walk `repeat` times on both ray sets, into `runs`.
     pub fn measure(&self, tree: &KdTree, repeat: u32, runs: &mut [GpuRun]) -> Result<()> {
-        let on_gpu = GpuTree::upload(&self.gpu, tree)?;
+        let mut on_gpu = GpuAccel::new(&self.gpu)?;
+        on_gpu.upload_tree(&self.gpu, tree)?;
         for (run, &walk) in runs.iter_mut().zip(&GpuWalk::ALL) {
             if run.row.primary_work.is_none() {
                 let (t, g) = (&self.tracer, &self.gpu);

@@ -1,51 +1,45 @@
 //! Views of a posed frame traced on the GPU (`[render] backend = "gpu"`): the camera samples are
 //! the CPU's (`render::pixel_sample` and `EyeCamera::ray`, so both backends sample the same film
 //! points), every view's rays of a band of rows go in one batch, and each pixel is the mean of
-//! its samples summed in sample order, as `render/frame.rs` does. The kd-tree is the CPU's
-//! binned SAH build over the posed triangles, rebuilt and uploaded only when they move.
+//! its samples summed in sample order, as `render/frame.rs` does. The trees are the CPU's, part
+//! for part (`accel::Updater`: static geometry, instances, refitted or rebuilt deforming
+//! meshes), and a frame uploads only what its update changed (`accel.rs`), with the span of
+//! vertices that moved.
 
+use super::accel::{GpuAccel, Uploads};
 use super::device::Gpu;
-use super::kdtree::GpuTree;
 use super::whitted::{GpuScene, GpuWhitted};
-use crate::accel::{BuildParams, Intersect, KdTree, Ray};
+use crate::accel::{Ray, TwoLevel};
 use crate::error::Result;
 use crate::output::Image;
 use crate::render::{RayCounts, Rendered, SceneView, TILE, TraceSettings, ViewFilm, pixel_sample};
-use crate::scene::Light;
 use glam::{Vec2, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Camera rays per batch: 2^20 rays hold 32 MiB of rays and 16 MiB of radiance.
 const BATCH_RAYS: usize = 1 << 20;
 
-/// The adapter, the compiled integrator, and what the last frame uploaded.
+/// The adapter, the compiled integrator, and the last frame's trees and surfaces.
 pub struct GpuFrames {
     gpu: Gpu,
     whitted: GpuWhitted,
-    resident: Option<Resident>,
-    /// Trees and surface sets uploaded so far.
-    uploads: (usize, usize),
-}
-
-/// A frame's tree and surfaces on the GPU, with what they were made from: a frame uploads again
-/// only what changed (a static scene uploads once for the whole range; moving lights upload
-/// the surfaces again, moving triangles the tree too).
-struct Resident {
-    positions: Vec<Vec3>,
-    lights: Vec<Light>,
-    tree: GpuTree,
-    scene: GpuScene,
+    accel: GpuAccel,
+    surfaces: Option<GpuScene>,
+    /// Bytes of surfaces written so far.
+    surface_bytes: u64,
 }
 
 impl GpuFrames {
     pub fn open() -> Result<GpuFrames> {
         let gpu = Gpu::open()?;
         let whitted = GpuWhitted::new(&gpu)?;
+        let accel = GpuAccel::new(&gpu)?;
         Ok(GpuFrames {
             gpu,
             whitted,
-            resident: None,
-            uploads: (0, 0),
+            accel,
+            surfaces: None,
+            surface_bytes: 0,
         })
     }
 
@@ -54,56 +48,38 @@ impl GpuFrames {
         self.gpu.describe()
     }
 
-    /// The kd-trees and the sets of surfaces uploaded so far.
-    pub fn uploads(&self) -> (usize, usize) {
-        self.uploads
+    /// What was sent to the GPU so far; `bytes` counts the surfaces too.
+    pub fn uploads(&self) -> Uploads {
+        let trees = self.accel.uploads();
+        Uploads {
+            bytes: trees.bytes + self.surface_bytes,
+            ..trees
+        }
     }
 
     /// Renders `views` (plain views of one film size and sample count, as `render_views` takes
     /// them); `on_tile(v)` once per 16x16 tile of view `v` finished. Once `stop` is set the
     /// bands not yet traced stay black. Rays are counted as the CPU counts them.
-    pub fn render<A: Intersect>(
+    pub fn render(
         &mut self,
-        scene: &SceneView<A>,
+        scene: &SceneView<TwoLevel>,
         settings: &TraceSettings,
         views: &[ViewFilm],
         on_tile: &(dyn Fn(usize) + Sync),
         stop: Option<&AtomicBool>,
     ) -> Result<Rendered> {
         let g = scene.geometry;
-        let moved = self
-            .resident
-            .as_ref()
-            .is_none_or(|r| r.positions != g.positions);
-        let relit = moved
-            || self
-                .resident
-                .as_ref()
-                .is_some_and(|r| r.lights != scene.lights);
-        if moved || relit {
-            let tree = match self.resident.take() {
-                Some(r) if !moved => r.tree,
-                _ => {
-                    self.uploads.0 += 1;
-                    let tree = KdTree::build(g.triangle_list(), BuildParams::default());
-                    GpuTree::upload(&self.gpu, &tree)?
-                }
-            };
-            self.uploads.1 += 1;
-            let surfaces =
-                GpuScene::upload(&self.gpu, g, scene.materials, scene.textures, scene.lights)?;
-            self.resident = Some(Resident {
-                positions: g.positions.clone(),
-                lights: scene.lights.to_vec(),
-                tree,
-                scene: surfaces,
-            });
-        }
-        let Resident {
-            tree,
-            scene: gpu_scene,
-            ..
-        } = self.resident.as_ref().expect("uploaded above");
+        self.accel
+            .update(&self.gpu, scene.accel, g.triangles.len())?;
+        let gpu = &self.gpu;
+        self.surface_bytes += match &mut self.surfaces {
+            Some(s) => s.update(gpu, g, scene.lights)?,
+            None => {
+                let s = GpuScene::upload(gpu, g, scene.materials, scene.textures, scene.lights)?;
+                self.surfaces.insert(s).resident_bytes()
+            }
+        };
+        let surfaces = self.surfaces.as_ref().expect("uploaded above");
         let first = views.first().expect("at least one view").film;
         let (w, h, spp) = (first.width, first.height, first.spp as usize);
         let mut images: Vec<Image> = views.iter().map(|_| Image::new(w, h)).collect();
@@ -133,9 +109,14 @@ impl GpuFrames {
                     }
                 }
             }
-            let (radiance, [secondary, shadow]) = self
-                .whitted
-                .radiance(&self.gpu, tree, gpu_scene, settings, &rays, &limits)?;
+            let (radiance, [secondary, shadow]) = self.whitted.radiance(
+                &self.gpu,
+                &self.accel,
+                surfaces,
+                settings,
+                &rays,
+                &limits,
+            )?;
             counts.primary += rays.len() as u64;
             counts.secondary += secondary;
             counts.shadow += shadow;

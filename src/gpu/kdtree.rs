@@ -1,12 +1,13 @@
-//! The CPU's kd-tree on the GPU: its arrays uploaded as they are (`accel::TreeArrays`), rays in a
-//! storage buffer, one compute invocation per ray (`walk.wgsl`, `rays.wgsl`), hits read back. Closest hit
-//! and any hit, each with three published GPU walks (`GpuWalk`).
+//! Rays through the CPU's kd-trees on the GPU (`accel.rs`): rays in a storage buffer, one compute
+//! invocation per ray (`walk.wgsl`, `parts.wgsl`, `rays.wgsl`), hits read back. Closest hit and
+//! any hit, each with three published GPU walks of a kd-tree (`GpuWalk`).
 
+use super::accel::GpuAccel;
 use super::buffers::{
     DISPATCH_RAYS, WORKGROUP, checked, dispatch_rays, read_back, readback, storage,
 };
 use super::device::Gpu;
-use crate::accel::{Hit, KdTree, MAX_DEPTH, Ray};
+use crate::accel::{Hit, MAX_DEPTH, Ray};
 use crate::error::Result;
 use bytemuck::{Pod, Zeroable};
 
@@ -83,111 +84,36 @@ struct GpuHit {
     b2: f32,
 }
 
-/// One dispatch's range of rays and the scene box (`Params`).
+/// One dispatch's range of rays and the parts to walk (`Params`).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Params {
-    bounds_min: [f32; 3],
     first: u32,
-    bounds_max: [f32; 3],
     count: u32,
+    parts: u32,
+    pad: u32,
 }
 
-/// A kd-tree resident on the GPU.
-pub struct GpuTree {
-    pub(super) nodes: wgpu::Buffer,
-    pub(super) prim_refs: wgpu::Buffer,
-    pub(super) triangles: wgpu::Buffer,
-    /// The second parts of the three arrays (bindings 13-15): an array larger than the adapter
-    /// binds in one buffer continues here; otherwise a placeholder the walk never reads.
-    pub(super) rest: [wgpu::Buffer; 3],
-    /// The root's box; `None` for a tree nothing can hit.
-    pub(super) bounds: Option<([f32; 3], [f32; 3])>,
-    /// Bytes uploaded.
-    pub bytes: u64,
+/// The WGSL that walks a frame's parts: the kd-tree walk with `stack` entries per ray (see
+/// `walk.wgsl`) and the parts' walk, before the kernel `main`.
+pub(super) fn walk_source(stack: u32, main: &str) -> String {
+    [include_str!("walk.wgsl"), include_str!("parts.wgsl"), main]
+        .concat()
+        .replace("__STACK_CAP__", &stack.to_string())
+        .replace("__FULL_STACK__", &FULL_STACK.to_string())
 }
 
-/// `items` in one storage buffer when they fit `limit` bytes, else in two (split between
-/// elements, each within the limit; `limit` 0 splits at the middle, for tests); the second is a
-/// one-element placeholder when unused. More than twice the limit is refused.
-fn two_parts<T: Pod>(
-    gpu: &Gpu,
-    what: &str,
-    items: &[T],
-    limit: u64,
-) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
-    let none = wgpu::BufferUsages::empty();
-    let size = std::mem::size_of::<T>();
-    // Within the limit, the first part takes everything and the second is the placeholder.
-    let first = if limit == 0 {
-        items.len().div_ceil(2)
-    } else {
-        ((limit / size as u64) as usize).min(items.len())
-    };
-    let (a, b) = items.split_at(first);
-    let placeholder = vec![0u8; size];
-    let rest = if b.is_empty() {
-        &placeholder[..]
-    } else {
-        bytemuck::cast_slice(b)
-    };
-    Ok((
-        storage(gpu, what, bytemuck::cast_slice(a), none)?,
-        storage(gpu, what, rest, none)?,
-    ))
-}
-
-impl GpuTree {
-    /// Uploads the tree's arrays unchanged: the shader decodes the CPU's node words. An array
-    /// larger than the adapter binds in one buffer goes in two.
-    pub fn upload(gpu: &Gpu, tree: &KdTree) -> Result<GpuTree> {
-        Self::upload_parts(gpu, tree, false)
-    }
-
-    /// `upload` with every array split in two halves whatever its size: the path a tree larger
-    /// than the binding limit takes, for testing it on a small one.
-    pub fn upload_in_halves(gpu: &Gpu, tree: &KdTree) -> Result<GpuTree> {
-        Self::upload_parts(gpu, tree, true)
-    }
-
-    fn upload_parts(gpu: &Gpu, tree: &KdTree, halves: bool) -> Result<GpuTree> {
-        let a = tree.arrays();
-        let nodes: Vec<[u32; 2]> = a.nodes.iter().map(|n| n.words()).collect();
-        let triangles: Vec<[f32; 9]> = a
-            .triangles
-            .iter()
-            .map(|t| {
-                let [p, q, r] = t.map(|v| v.to_array());
-                [p[0], p[1], p[2], q[0], q[1], q[2], r[0], r[1], r[2]]
-            })
-            .collect();
-        let limit = if halves {
-            0
-        } else {
-            gpu.limits
-                .max_storage_buffer_binding_size
-                .min(gpu.limits.max_buffer_size)
-        };
-        let (nodes, nodes_rest) = two_parts(gpu, "the kd-tree's nodes", &nodes, limit)?;
-        let (prim_refs, refs_rest) =
-            two_parts(gpu, "the kd-tree's leaf references", a.prim_refs, limit)?;
-        let (triangles, tris_rest) = two_parts(gpu, "the triangles", &triangles, limit)?;
-        let rest = [nodes_rest, refs_rest, tris_rest];
-        let bytes = [&nodes, &prim_refs, &triangles]
-            .into_iter()
-            .chain(&rest)
-            .map(|b| b.size())
-            .sum();
-        Ok(GpuTree {
-            nodes,
-            prim_refs,
-            triangles,
-            rest,
-            bounds: (!a.bounds.is_empty() && !a.nodes.is_empty())
-                .then(|| (a.bounds.min.to_array(), a.bounds.max.to_array())),
-            bytes,
-        })
-    }
+/// The bindings of a frame's parts other than 0-2 (the first parts of the nodes, references
+/// and triangles): the arrays' second parts (13-15), the boxes (17-18) and the table (19).
+pub(super) fn part_bindings(accel: &GpuAccel) -> [(u32, &wgpu::Buffer); 6] {
+    [
+        (13, &accel.nodes.rest),
+        (14, &accel.prim_refs.rest),
+        (15, &accel.triangles.rest),
+        (17, &accel.boxes.first),
+        (18, &accel.boxes.rest),
+        (19, &accel.parts),
+    ]
 }
 
 /// A batch of rays resident on the GPU, with room for their hits and for the work counts of a
@@ -258,10 +184,7 @@ impl GpuTracer {
     pub fn new(gpu: &Gpu) -> Result<GpuTracer> {
         let mut pipelines = Vec::new();
         for walk in GpuWalk::ALL {
-            let source = [include_str!("walk.wgsl"), include_str!("rays.wgsl")]
-                .concat()
-                .replace("__STACK_CAP__", &walk.stack_entries().to_string())
-                .replace("__FULL_STACK__", &FULL_STACK.to_string());
+            let source = walk_source(walk.stack_entries(), include_str!("rays.wgsl"));
             let module = checked(gpu, "compiling the kd-tree shader", || {
                 gpu.device
                     .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -292,13 +215,13 @@ impl GpuTracer {
         Ok(GpuTracer { pipelines })
     }
 
-    /// Walks every ray of `rays` through `tree` (closest hit, or any hit with `any`) and waits
+    /// Walks every ray of `rays` through `accel` (closest hit, or any hit with `any`) and waits
     /// for the GPU; the seconds from submission to completion. The hits stay on the GPU until
     /// `read_hits`.
     pub fn trace(
         &self,
         gpu: &Gpu,
-        tree: &GpuTree,
+        accel: &GpuAccel,
         rays: &GpuRays,
         walk: GpuWalk,
         any: bool,
@@ -308,7 +231,7 @@ impl GpuTracer {
             any,
             count: false,
         };
-        self.dispatch(gpu, tree, rays, query)
+        self.dispatch(gpu, accel, rays, query)
     }
 
     /// Per ray: the inner nodes, leaves and triangle tests of the walk (an untimed pass; the
@@ -316,7 +239,7 @@ impl GpuTracer {
     pub fn work(
         &self,
         gpu: &Gpu,
-        tree: &GpuTree,
+        accel: &GpuAccel,
         rays: &GpuRays,
         walk: GpuWalk,
         any: bool,
@@ -327,7 +250,7 @@ impl GpuTracer {
         encoder.clear_buffer(&rays.work, 0, None);
         gpu.queue.submit([encoder.finish()]);
         let count = true;
-        self.dispatch(gpu, tree, rays, Query { walk, any, count })?;
+        self.dispatch(gpu, accel, rays, Query { walk, any, count })?;
         let counts: Vec<u32> = read_back(gpu, &rays.work, &rays.work_readback, |b| {
             bytemuck::cast_slice(b).to_vec()
         })?;
@@ -341,8 +264,8 @@ impl GpuTracer {
         Ok(sums.map(|v| v as f64 / n))
     }
 
-    fn dispatch(&self, gpu: &Gpu, tree: &GpuTree, rays: &GpuRays, query: Query) -> Result<f64> {
-        let Some((lo, hi)) = tree.bounds else {
+    fn dispatch(&self, gpu: &Gpu, accel: &GpuAccel, rays: &GpuRays, query: Query) -> Result<f64> {
+        if accel.part_count == 0 {
             // Nothing to hit: the hits buffer still says so.
             let blank = vec![
                 GpuHit {
@@ -356,7 +279,7 @@ impl GpuTracer {
             gpu.queue
                 .write_buffer(&rays.hits, 0, bytemuck::cast_slice(&blank));
             return Ok(0.0);
-        };
+        }
         let pipeline = self
             .pipelines
             .iter()
@@ -364,33 +287,30 @@ impl GpuTracer {
             .map(|(_, p)| p)
             .expect("a pipeline per walk and query");
         let bindings = [
-            &tree.nodes,
-            &tree.prim_refs,
-            &tree.triangles,
+            &accel.nodes.first,
+            &accel.prim_refs.first,
+            &accel.triangles.first,
             &rays.rays,
             &rays.hits,
         ];
         let uniform = |first: usize, count: usize| {
             bytemuck::bytes_of(&Params {
-                bounds_min: lo,
                 first: first as u32,
-                bounds_max: hi,
                 count: count as u32,
+                parts: accel.part_count,
+                pad: 0,
             })
             .to_vec()
         };
+        let mut rest = vec![(6, &rays.work)];
+        rest.extend(part_bindings(accel));
         dispatch_rays(
             gpu,
             pipeline,
             (rays.count, DISPATCH_RAYS),
             uniform,
             &bindings,
-            &[
-                (6, &rays.work),
-                (13, &tree.rest[0]),
-                (14, &tree.rest[1]),
-                (15, &tree.rest[2]),
-            ],
+            &rest,
         )
     }
 

@@ -1,5 +1,6 @@
-// Batches of rays through the kd-tree of `walk.wgsl` (which the host puts before this file):
-// one invocation per ray, its hit written out, and in a counting pass its work.
+// Batches of rays through the parts of `parts.wgsl` (which the host puts, after `walk.wgsl`,
+// before this file): one invocation per ray, its hit written out, and in a counting pass its
+// work.
 
 // Set by the host per pipeline: any hit (shadow rays) or closest hit, and whether to count the
 // walk's work (an untimed pass, as the CPU's counted walk is).
@@ -14,10 +15,11 @@ struct Ray {
 }
 
 struct Params {
-    bounds_min: vec3<f32>,
     first: u32,
-    bounds_max: vec3<f32>,
     count: u32,
+    // Rows of the part table.
+    parts: u32,
+    pad: u32,
 }
 
 @group(0) @binding(3) var<storage, read> rays: array<Ray>;
@@ -37,7 +39,7 @@ fn main(
     }
     let index = params.first + gid.x;
     let ray = rays[index];
-    hits[index] = walk(ray.origin, ray.dir, ray.t_max, params.bounds_min, params.bounds_max, ANY_HIT);
+    hits[index] = trace(ray.origin, ray.dir, ray.t_max, ANY_HIT, params.parts);
     if COUNT {
         let slot = 3u * (params.first / 64u + group.x);
         atomicAdd(&work[slot], tally.x);

@@ -189,8 +189,9 @@ fn advance(trail: vec2<u32>, level: u32) -> vec2<u32> {
 var<private> tally: vec3<u32>;
 
 // The closest hit of the ray `o + t d` with 0 < t < t_max (or, with `any`, the first hit found)
-// in the tree over the box `box_min`..`box_max`; `prim` = NO_PRIM for none.
-fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec3<f32>, any: bool) -> HitOut {
+// in the tree over the box `box_min`..`box_max` whose root is node `root` and whose leaves'
+// references start at `ref_base`; `prim` (an entry of the triangle array) = NO_PRIM for none.
+fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec3<f32>, any: bool, root: u32, ref_base: u32) -> HitOut {
     var out: HitOut;
     out.t = t_max;
     out.prim = NO_PRIM;
@@ -215,7 +216,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
             t_exit = min(t_exit, max(near, far));
         }
     }
-    if arrayLength(&nodes) == 0u || !(t_enter <= t_exit) {
+    if !(t_enter <= t_exit) {
         return out;
     }
     let sh = shear_of(d);
@@ -224,7 +225,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
     // The ring's newest entry is at `top - 1` (modulo its length); `size` entries are held.
     var top = 0u;
     var size = 0u;
-    var node = 0u;
+    var node = root;
     var depth = 0u;
     var trail = vec2<u32>(0u, 0u);
     var t_min = t_enter;
@@ -235,7 +236,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
         }
         let n = node_at(node);
         if (n.y & 3u) == 3u {
-            let first = n.x;
+            let first = n.x + ref_base;
             let end = first + (n.y >> 2u);
             var done = false;
             tally.y += 1u;
@@ -276,7 +277,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
                 t_far = e.t_far;
             } else {
                 // Restart: the trail steers the walk back down to that child.
-                node = 0u;
+                node = root;
                 depth = 0u;
                 t_min = t_enter;
                 t_far = t_exit;

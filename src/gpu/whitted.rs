@@ -1,11 +1,12 @@
 //! The Whitted integrator on the GPU (`whitted.wgsl`): a posed frame's surfaces, materials,
 //! textures and lights uploaded once, then the radiance of every camera ray of a batch, both
-//! eyes' rays in one batch if the caller likes, traced and shaded on the GPU with the kd-tree
-//! of `kdtree.rs`.
+//! eyes' rays in one batch if the caller likes, traced and shaded on the GPU through the frame's
+//! trees (`accel.rs`).
 
+use super::accel::GpuAccel;
 use super::buffers::{WORKGROUP, checked, dispatch_rays, read_back, readback, storage};
 use super::device::Gpu;
-use super::kdtree::{FULL_STACK, GpuRay, GpuTree, SHORT_STACK};
+use super::kdtree::{GpuRay, SHORT_STACK, part_bindings, walk_source};
 use crate::accel::Ray;
 use crate::error::Result;
 use crate::render::{ShadingModel, TraceSettings};
@@ -67,10 +68,10 @@ struct GpuTexture {
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct FrameParams {
-    bounds_min: [f32; 3],
     first: u32,
-    bounds_max: [f32; 3],
     count: u32,
+    parts: u32,
+    pad1: u32,
     background: [f32; 3],
     max_depth: u32,
     shading: u32,
@@ -79,9 +80,13 @@ struct FrameParams {
     pad: u32,
 }
 
-/// A posed frame's shading data on the GPU.
+/// A posed frame's shading data on the GPU. Materials and textures never change; a later frame
+/// writes the span of vertices that moved, and the lights when they did.
 pub struct GpuScene {
     vertices: wgpu::Buffer,
+    /// The vertices as last written, to find what a frame moved.
+    written: Vec<Vertex>,
+    written_lights: Vec<Light>,
     triangles: wgpu::Buffer,
     materials: wgpu::Buffer,
     lights: wgpu::Buffer,
@@ -90,17 +95,16 @@ pub struct GpuScene {
     light_count: u32,
 }
 
-/// A storage buffer of `items`, holding one zeroed item when there are none (a binding may not
-/// be smaller than its element).
-fn array<T: Pod>(gpu: &Gpu, what: &str, mut items: Vec<T>) -> Result<wgpu::Buffer> {
-    if items.is_empty() {
-        items.push(T::zeroed());
-    }
+/// A storage buffer of `items` that a frame may write again, holding one zeroed item when there
+/// are none (a binding may not be smaller than its element).
+fn array<T: Pod>(gpu: &Gpu, what: &str, items: &[T]) -> Result<wgpu::Buffer> {
+    let zero = [T::zeroed()];
+    let items = if items.is_empty() { &zero[..] } else { items };
     storage(
         gpu,
         what,
-        bytemuck::cast_slice(&items),
-        wgpu::BufferUsages::empty(),
+        bytemuck::cast_slice(items),
+        wgpu::BufferUsages::COPY_DST,
     )
 }
 
@@ -121,25 +125,7 @@ impl GpuScene {
         lights: &[Light],
     ) -> Result<GpuScene> {
         let g = geometry;
-        let vertices: Vec<Vertex> = (0..g.positions.len())
-            .map(|i| {
-                let uv = |k: usize| g.tex_coords[k].get(i).copied().unwrap_or_default();
-                Vertex {
-                    p: g.positions[i].to_array(),
-                    n: g.normals.get(i).copied().unwrap_or_default().to_array(),
-                    color: g
-                        .colors
-                        .get(i)
-                        .map_or(Vec3::ONE, |c| c.truncate())
-                        .to_array(),
-                    u0: uv(0).x,
-                    v0: uv(0).y,
-                    u1: uv(1).x,
-                    v1: uv(1).y,
-                    pad: [0.0; 3],
-                }
-            })
-            .collect();
+        let vertices = vertices_of(g);
         let triangles: Vec<[u32; 4]> = g
             .triangles
             .iter()
@@ -182,39 +168,120 @@ impl GpuScene {
                 }
             })
             .collect();
-        let gpu_lights: Vec<GpuLight> = lights
-            .iter()
-            .map(|l| {
-                let (kind, cos_inner, cos_outer) = match l.kind {
-                    LightKind::Directional => (0, 1.0, 1.0),
-                    LightKind::Point => (1, 1.0, 1.0),
-                    LightKind::Spot {
-                        inner_cone,
-                        outer_cone,
-                    } => (2, inner_cone.cos(), outer_cone.cos()),
-                };
-                GpuLight {
-                    position: l.position.to_array(),
-                    kind,
-                    direction: l.direction.to_array(),
-                    range: l.range.filter(|r| *r > 0.0).unwrap_or(0.0),
-                    power: l.power.to_array(),
-                    cos_outer,
-                    cos_inner,
-                    pad: [0.0; 3],
-                }
-            })
-            .collect();
+        let gpu_lights = lights_of(lights);
         Ok(GpuScene {
-            vertices: array(gpu, "the vertices", vertices)?,
-            triangles: array(gpu, "the triangles' vertices and materials", triangles)?,
-            materials: array(gpu, "the materials", materials)?,
+            vertices: array(gpu, "the vertices", &vertices)?,
+            written: vertices,
+            written_lights: lights.to_vec(),
+            triangles: array(gpu, "the triangles' vertices and materials", &triangles)?,
+            materials: array(gpu, "the materials", &materials)?,
             light_count: gpu_lights.len() as u32,
-            lights: array(gpu, "the lights", gpu_lights)?,
-            textures: array(gpu, "the textures", headers)?,
-            texels: array(gpu, "the texels", texels)?,
+            lights: array(gpu, "the lights", &gpu_lights)?,
+            textures: array(gpu, "the textures", &headers)?,
+            texels: array(gpu, "the texels", &texels)?,
         })
     }
+
+    /// Bytes the scene holds on the GPU.
+    pub fn resident_bytes(&self) -> u64 {
+        [
+            &self.vertices,
+            &self.triangles,
+            &self.materials,
+            &self.lights,
+            &self.textures,
+            &self.texels,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum()
+    }
+
+    /// Brings the vertices and lights up to date with a later pose of the same scene, writing
+    /// the span of vertices that changed and the lights if they did; the bytes written.
+    pub fn update(&mut self, gpu: &Gpu, geometry: &Geometry, lights: &[Light]) -> Result<u64> {
+        let vertices = vertices_of(geometry);
+        assert_eq!(
+            vertices.len(),
+            self.written.len(),
+            "a pose of the same scene"
+        );
+        let same = |(a, b): (&Vertex, &Vertex)| bytemuck::bytes_of(a) == bytemuck::bytes_of(b);
+        let first = vertices.iter().zip(&self.written).position(|v| !same(v));
+        let mut bytes = 0;
+        if let Some(first) = first {
+            let end = vertices.len()
+                - vertices
+                    .iter()
+                    .zip(&self.written)
+                    .rev()
+                    .position(|v| !same(v))
+                    .expect("one differs");
+            let span: &[u8] = bytemuck::cast_slice(&vertices[first..end]);
+            let offset = (first * std::mem::size_of::<Vertex>()) as u64;
+            gpu.queue.write_buffer(&self.vertices, offset, span);
+            bytes += span.len() as u64;
+            self.written = vertices;
+        }
+        if lights != self.written_lights {
+            let gpu_lights = lights_of(lights);
+            self.light_count = gpu_lights.len() as u32;
+            self.lights = array(gpu, "the lights", &gpu_lights)?;
+            self.written_lights = lights.to_vec();
+            bytes += (gpu_lights.len() * std::mem::size_of::<GpuLight>()) as u64;
+        }
+        Ok(bytes)
+    }
+}
+
+/// The posed vertices as the integrator reads them.
+fn vertices_of(g: &Geometry) -> Vec<Vertex> {
+    (0..g.positions.len())
+        .map(|i| {
+            let uv = |k: usize| g.tex_coords[k].get(i).copied().unwrap_or_default();
+            Vertex {
+                p: g.positions[i].to_array(),
+                n: g.normals.get(i).copied().unwrap_or_default().to_array(),
+                color: g
+                    .colors
+                    .get(i)
+                    .map_or(Vec3::ONE, |c| c.truncate())
+                    .to_array(),
+                u0: uv(0).x,
+                v0: uv(0).y,
+                u1: uv(1).x,
+                v1: uv(1).y,
+                pad: [0.0; 3],
+            }
+        })
+        .collect()
+}
+
+/// The lights as the integrator reads them.
+fn lights_of(lights: &[Light]) -> Vec<GpuLight> {
+    lights
+        .iter()
+        .map(|l| {
+            let (kind, cos_inner, cos_outer) = match l.kind {
+                LightKind::Directional => (0, 1.0, 1.0),
+                LightKind::Point => (1, 1.0, 1.0),
+                LightKind::Spot {
+                    inner_cone,
+                    outer_cone,
+                } => (2, inner_cone.cos(), outer_cone.cos()),
+            };
+            GpuLight {
+                position: l.position.to_array(),
+                kind,
+                direction: l.direction.to_array(),
+                range: l.range.filter(|r| *r > 0.0).unwrap_or(0.0),
+                power: l.power.to_array(),
+                cos_outer,
+                cos_inner,
+                pad: [0.0; 3],
+            }
+        })
+        .collect()
 }
 
 /// The compiled integrator.
@@ -226,10 +293,7 @@ impl GpuWhitted {
     pub fn new(gpu: &Gpu) -> Result<GpuWhitted> {
         // The short stack: a ray's walk state stays small next to the integrator's own stack of
         // waiting rays, and every walk finds the same hits.
-        let source = [include_str!("walk.wgsl"), include_str!("whitted.wgsl")]
-            .concat()
-            .replace("__STACK_CAP__", &SHORT_STACK.to_string())
-            .replace("__FULL_STACK__", &FULL_STACK.to_string());
+        let source = walk_source(SHORT_STACK, include_str!("whitted.wgsl"));
         let module = checked(gpu, "compiling the Whitted shader", || {
             gpu.device
                 .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -256,7 +320,7 @@ impl GpuWhitted {
     pub fn radiance(
         &self,
         gpu: &Gpu,
-        tree: &GpuTree,
+        accel: &GpuAccel,
         scene: &GpuScene,
         settings: &TraceSettings,
         rays: &[Ray],
@@ -300,14 +364,12 @@ impl GpuWhitted {
                 mapped_at_creation: false,
             })
         })?;
-        // A tree nothing can hit: an empty box (rays then see the background).
-        let (lo, hi) = tree.bounds.unwrap_or(([1.0; 3], [-1.0; 3]));
         let uniform = |first: usize, count: usize| {
             bytemuck::bytes_of(&FrameParams {
-                bounds_min: lo,
                 first: first as u32,
-                bounds_max: hi,
                 count: count as u32,
+                parts: accel.part_count,
+                pad1: 0,
                 background: settings.background.to_array(),
                 max_depth: settings.max_depth,
                 shading: match settings.shading {
@@ -321,13 +383,13 @@ impl GpuWhitted {
             .to_vec()
         };
         let first = [
-            &tree.nodes,
-            &tree.prim_refs,
-            &tree.triangles,
+            &accel.nodes.first,
+            &accel.prim_refs.first,
+            &accel.triangles.first,
             &ray_buf,
             &out,
         ];
-        let rest = [
+        let mut rest = vec![
             (6, &scene.vertices),
             (7, &scene.triangles),
             (8, &scene.materials),
@@ -335,11 +397,9 @@ impl GpuWhitted {
             (10, &scene.textures),
             (11, &scene.texels),
             (12, &pending),
-            (13, &tree.rest[0]),
-            (14, &tree.rest[1]),
-            (15, &tree.rest[2]),
             (16, &counts),
         ];
+        rest.extend(part_bindings(accel));
         dispatch_rays(
             gpu,
             &self.pipeline,

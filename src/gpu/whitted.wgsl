@@ -1,5 +1,6 @@
 // The Whitted integrator of WHITTED.md section 4 on the GPU, after `render/integrator.rs`, with
-// the kd-tree walk of `walk.wgsl` (which the host puts before this file): one invocation per
+// the parts and kd-tree walks of `parts.wgsl` and `walk.wgsl` (which the host puts before this
+// file): one invocation per
 // camera ray; emission, direct light from every punctual light through shadow rays, and the
 // Fresnel-weighted mirror and refraction rays to `max_depth`. WGSL has no recursion, so the rays
 // still to trace wait on a per-invocation stack with the weight their radiance gets.
@@ -12,10 +13,11 @@ struct Ray {
 }
 
 struct Frame {
-    bounds_min: vec3<f32>,
     first: u32,
-    bounds_max: vec3<f32>,
     count: u32,
+    // Rows of the part table.
+    parts: u32,
+    pad1: u32,
     background: vec3<f32>,
     max_depth: u32,
     // 0: Cook-Torrance (the glTF BRDF), 1: Phong.
@@ -102,7 +104,7 @@ const SHADOW_EPSILON: f32 = 1e-4;
 const FAR: f32 = 3.4028235e38;
 
 fn hit_anything(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
-    return walk(o, d, t_max, frame.bounds_min, frame.bounds_max, true).prim != NO_PRIM;
+    return trace(o, d, t_max, true, frame.parts).prim != NO_PRIM;
 }
 
 // `offset_origin` of integrator.rs (Wächter and Binder, Ray Tracing Gems ch. 6): a few ulps of
@@ -295,7 +297,7 @@ fn main(
         size -= 1u;
         let ray = pending[first_slot + size];
         secondary += select(0u, 1u, ray.depth > 1u);
-        let hit = walk(ray.origin, ray.dir, ray.t_max, frame.bounds_min, frame.bounds_max, false);
+        let hit = trace(ray.origin, ray.dir, ray.t_max, false, frame.parts);
         if hit.prim == NO_PRIM {
             total += ray.weight * frame.background;
             continue;

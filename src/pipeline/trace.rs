@@ -432,17 +432,17 @@ impl<'p> FrameTracer<'p> {
         None
     }
 
-    /// The kd-trees and surface sets the GPU backend has uploaded (`None` before it traced).
+    /// What the GPU backend has uploaded (`None` before it traced).
     #[cfg(feature = "gpu")]
-    pub fn gpu_uploads(&self) -> Option<(usize, usize)> {
+    pub fn gpu_uploads(&self) -> Option<crate::gpu::Uploads> {
         self.gpu.as_ref().map(|g| g.uploads())
     }
 
     /// `films` traced on the GPU, which is opened on first use.
     #[cfg(feature = "gpu")]
-    fn gpu_views<A: Intersect>(
+    fn gpu_views(
         &mut self,
-        scene: &SceneView<A>,
+        scene: &SceneView<crate::accel::TwoLevel>,
         settings: &TraceSettings,
         films: &[ViewFilm],
         on_tile: &(dyn Fn(usize) + Sync),

@@ -1,0 +1,94 @@
+//! An array on the GPU that a shader reads as one but that may sit in two storage buffers: when
+//! it is larger than the adapter binds in one, the second holds the rest and the shader reads on
+//! past the first's end (`node_at`, `prim_at`, `tri_at`, `box_at` in the WGSL). Written in place,
+//! so that a frame writes only the elements that changed.
+
+use super::buffers::checked;
+use super::device::Gpu;
+use crate::error::{Error, Result};
+use bytemuck::Pod;
+
+pub struct SplitArray {
+    pub(super) first: wgpu::Buffer,
+    /// The elements past `split`; a one-element placeholder the shader never reads when the
+    /// array fits one buffer.
+    pub(super) rest: wgpu::Buffer,
+    split: usize,
+    capacity: usize,
+    element: usize,
+}
+
+impl SplitArray {
+    /// Room for `capacity` zeroed elements of `element` bytes, in buffers of at most `limit`
+    /// bytes each (`limit` 0: split at the middle whatever the size, the path of an array over
+    /// the limit, for tests). More than twice the limit is refused, naming `what`.
+    pub fn new(
+        gpu: &Gpu,
+        what: &str,
+        element: usize,
+        capacity: usize,
+        limit: u64,
+    ) -> Result<SplitArray> {
+        let bytes = (capacity * element) as u64;
+        if limit > 0 && bytes > 2 * limit {
+            return Err(Error::Device {
+                message: format!(
+                    "{what} need {:.1} MiB, more than twice the {:.1} MiB {} binds in one \
+                     buffer; render this scene with the CPU backend",
+                    bytes as f64 / 1048576.0,
+                    limit as f64 / 1048576.0,
+                    gpu.info.name
+                ),
+            });
+        }
+        let split = if limit == 0 {
+            capacity.div_ceil(2)
+        } else {
+            ((limit / element as u64) as usize).min(capacity)
+        };
+        // A binding may not be empty: an unused part holds one element.
+        let buffer = |elements: usize| {
+            checked(gpu, what, || {
+                gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(what),
+                    size: (elements.max(1) * element) as u64,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            })
+        };
+        Ok(SplitArray {
+            first: buffer(split)?,
+            rest: buffer(capacity - split)?,
+            split,
+            capacity,
+            element,
+        })
+    }
+
+    /// Writes `items` from element `at` on; the bytes written.
+    pub fn write<T: Pod>(&self, gpu: &Gpu, at: usize, items: &[T]) -> u64 {
+        assert_eq!(std::mem::size_of::<T>(), self.element, "one element type");
+        assert!(
+            at + items.len() <= self.capacity,
+            "written within the array"
+        );
+        let (before, after) = items.split_at(self.split.saturating_sub(at).min(items.len()));
+        if !before.is_empty() {
+            let offset = (at * self.element) as u64;
+            gpu.queue
+                .write_buffer(&self.first, offset, bytemuck::cast_slice(before));
+        }
+        if !after.is_empty() {
+            let offset = ((at + before.len() - self.split) * self.element) as u64;
+            gpu.queue
+                .write_buffer(&self.rest, offset, bytemuck::cast_slice(after));
+        }
+        (items.len() * self.element) as u64
+    }
+
+    /// Bytes the array holds on the GPU.
+    pub fn size(&self) -> u64 {
+        self.first.size() + self.rest.size()
+    }
+}
