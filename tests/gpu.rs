@@ -510,9 +510,11 @@ mod on_gpu {
             let g = &posed.geometry;
             let (lo, hi) = g.bounds().unwrap();
             let tree = KdTree::build(g.triangle_list(), BuildParams::default());
-            // Every other scene's tree in two parts per array (the path of a tree over the
-            // binding limit), so that the integrator's bindings of the second parts are checked.
-            let mut on_gpu = if scenes.iter().position(|s| s == path).unwrap() % 2 == 1 {
+            // Every other scene's tree and surfaces in two parts per array (the path of a scene
+            // over the binding limit), so that the integrator's bindings of the second parts are
+            // checked.
+            let halves = scenes.iter().position(|s| s == path).unwrap() % 2 == 0;
+            let mut on_gpu = if halves {
                 GpuAccel::in_halves(&gpu).unwrap()
             } else {
                 GpuAccel::new(&gpu).unwrap()
@@ -540,8 +542,11 @@ mod on_gpu {
                 direction: Vec3::new(-0.4, -1.0, -0.3).normalize(),
                 range: None,
             });
-            let gpu_scene =
-                GpuScene::upload(&gpu, g, &scene.materials, &scene.textures, &lights).unwrap();
+            let upload = match halves {
+                true => GpuScene::upload_in_halves,
+                false => GpuScene::upload,
+            };
+            let gpu_scene = upload(&gpu, g, &scene.materials, &scene.textures, &lights).unwrap();
             let rays = framing_rays(lo, hi, 96, 72);
             let t_max = vec![f32::INFINITY; rays.len()];
             for shading in [ShadingModel::CookTorrance, ShadingModel::Phong] {

@@ -190,11 +190,7 @@ pub struct GpuAccel {
 impl GpuAccel {
     /// An empty structure whose arrays split at the adapter's binding limit.
     pub fn new(gpu: &Gpu) -> Result<GpuAccel> {
-        let limit = gpu
-            .limits
-            .max_storage_buffer_binding_size
-            .min(gpu.limits.max_buffer_size);
-        Self::with_limit(gpu, limit)
+        Self::with_limit(gpu, super::buffers::binding_limit(gpu))
     }
 
     /// `new` with every array split in two halves whatever its size: the path a structure

@@ -21,6 +21,13 @@ pub fn checked<T>(gpu: &Gpu, what: &str, make: impl FnOnce() -> T) -> Result<T> 
     }
 }
 
+/// The most bytes the adapter binds in one storage buffer.
+pub fn binding_limit(gpu: &Gpu) -> u64 {
+    gpu.limits
+        .max_storage_buffer_binding_size
+        .min(gpu.limits.max_buffer_size)
+}
+
 /// A storage buffer holding `bytes` (at least 4, since a binding may not be empty), after
 /// checking it against the adapter's limits.
 pub fn storage(
@@ -29,10 +36,7 @@ pub fn storage(
     bytes: &[u8],
     usage: wgpu::BufferUsages,
 ) -> Result<wgpu::Buffer> {
-    let limit = gpu
-        .limits
-        .max_storage_buffer_binding_size
-        .min(gpu.limits.max_buffer_size);
+    let limit = binding_limit(gpu);
     if bytes.len() as u64 > limit {
         return Err(Error::Device {
             message: format!(

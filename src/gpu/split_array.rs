@@ -66,6 +66,13 @@ impl SplitArray {
         })
     }
 
+    /// `items` in a new array (see `new`).
+    pub fn filled<T: Pod>(gpu: &Gpu, what: &str, items: &[T], limit: u64) -> Result<SplitArray> {
+        let array = Self::new(gpu, what, std::mem::size_of::<T>(), items.len(), limit)?;
+        array.write(gpu, 0, items);
+        Ok(array)
+    }
+
     /// Writes `items` from element `at` on; the bytes written.
     pub fn write<T: Pod>(&self, gpu: &Gpu, at: usize, items: &[T]) -> u64 {
         assert_eq!(std::mem::size_of::<T>(), self.element, "one element type");

@@ -4,9 +4,12 @@
 //! trees (`accel.rs`).
 
 use super::accel::GpuAccel;
-use super::buffers::{WORKGROUP, checked, dispatch_rays, read_back, readback, storage};
+use super::buffers::{
+    WORKGROUP, binding_limit, checked, dispatch_rays, read_back, readback, storage,
+};
 use super::device::Gpu;
 use super::kdtree::{GpuRay, SHORT_STACK, part_bindings, walk_source};
+use super::split_array::SplitArray;
 use crate::accel::Ray;
 use crate::error::Result;
 use crate::render::{ShadingModel, TraceSettings};
@@ -82,16 +85,19 @@ struct FrameParams {
 
 /// A posed frame's shading data on the GPU. Materials and textures never change; a later frame
 /// writes the span of vertices that moved, and the lights when they did.
+///
+/// The vertices, the triangles' vertex indices and the texels, the arrays that grow with the
+/// scene, may each sit in two buffers when larger than the adapter binds in one (`SplitArray`).
 pub struct GpuScene {
-    vertices: wgpu::Buffer,
+    vertices: SplitArray,
     /// The vertices as last written, to find what a frame moved.
     written: Vec<Vertex>,
     written_lights: Vec<Light>,
-    triangles: wgpu::Buffer,
+    triangles: SplitArray,
     materials: wgpu::Buffer,
     lights: wgpu::Buffer,
     textures: wgpu::Buffer,
-    texels: wgpu::Buffer,
+    texels: SplitArray,
     light_count: u32,
 }
 
@@ -123,6 +129,30 @@ impl GpuScene {
         materials: &[Material],
         textures: &[Option<Texture>],
         lights: &[Light],
+    ) -> Result<GpuScene> {
+        let limit = binding_limit(gpu);
+        Self::upload_within(gpu, geometry, materials, textures, lights, limit)
+    }
+
+    /// `upload` with the vertices, triangles and texels each in two halves whatever their
+    /// size: the path of a scene larger than the binding limit, for testing it on a small one.
+    pub fn upload_in_halves(
+        gpu: &Gpu,
+        geometry: &Geometry,
+        materials: &[Material],
+        textures: &[Option<Texture>],
+        lights: &[Light],
+    ) -> Result<GpuScene> {
+        Self::upload_within(gpu, geometry, materials, textures, lights, 0)
+    }
+
+    fn upload_within(
+        gpu: &Gpu,
+        geometry: &Geometry,
+        materials: &[Material],
+        textures: &[Option<Texture>],
+        lights: &[Light],
+        limit: u64,
     ) -> Result<GpuScene> {
         let g = geometry;
         let vertices = vertices_of(g);
@@ -170,31 +200,28 @@ impl GpuScene {
             .collect();
         let gpu_lights = lights_of(lights);
         Ok(GpuScene {
-            vertices: array(gpu, "the vertices", &vertices)?,
+            vertices: SplitArray::filled(gpu, "the vertices", &vertices, limit)?,
             written: vertices,
             written_lights: lights.to_vec(),
-            triangles: array(gpu, "the triangles' vertices and materials", &triangles)?,
+            triangles: SplitArray::filled(gpu, "the triangles' vertex indices", &triangles, limit)?,
             materials: array(gpu, "the materials", &materials)?,
             light_count: gpu_lights.len() as u32,
             lights: array(gpu, "the lights", &gpu_lights)?,
             textures: array(gpu, "the textures", &headers)?,
-            texels: array(gpu, "the texels", &texels)?,
+            texels: SplitArray::filled(gpu, "the texels", &texels, limit)?,
         })
     }
 
     /// Bytes the scene holds on the GPU.
     pub fn resident_bytes(&self) -> u64 {
-        [
-            &self.vertices,
-            &self.triangles,
-            &self.materials,
-            &self.lights,
-            &self.textures,
-            &self.texels,
-        ]
-        .iter()
-        .map(|b| b.size())
-        .sum()
+        [&self.materials, &self.lights, &self.textures]
+            .iter()
+            .map(|b| b.size())
+            .sum::<u64>()
+            + [&self.vertices, &self.triangles, &self.texels]
+                .iter()
+                .map(|a| a.size())
+                .sum::<u64>()
     }
 
     /// Brings the vertices and lights up to date with a later pose of the same scene, writing
@@ -217,10 +244,7 @@ impl GpuScene {
                     .rev()
                     .position(|v| !same(v))
                     .expect("one differs");
-            let span: &[u8] = bytemuck::cast_slice(&vertices[first..end]);
-            let offset = (first * std::mem::size_of::<Vertex>()) as u64;
-            gpu.queue.write_buffer(&self.vertices, offset, span);
-            bytes += span.len() as u64;
+            bytes += self.vertices.write(gpu, first, &vertices[first..end]);
             self.written = vertices;
         }
         if lights != self.written_lights {
@@ -351,10 +375,7 @@ impl GpuWhitted {
         // as many rays per dispatch as fit the adapter's binding limit, at most 2^16.
         let stride = settings.max_depth + 1;
         let entry = 48 * stride as u64;
-        let limit = gpu
-            .limits
-            .max_storage_buffer_binding_size
-            .min(gpu.limits.max_buffer_size);
+        let limit = binding_limit(gpu);
         let per_dispatch = ((limit / entry) as usize).clamp(WORKGROUP, 1 << 16);
         let pending = checked(gpu, "the waiting rays", || {
             gpu.device.create_buffer(&wgpu::BufferDescriptor {
@@ -390,12 +411,15 @@ impl GpuWhitted {
             &out,
         ];
         let mut rest = vec![
-            (6, &scene.vertices),
-            (7, &scene.triangles),
+            (6, &scene.vertices.first),
+            (7, &scene.triangles.first),
             (8, &scene.materials),
             (9, &scene.lights),
             (10, &scene.textures),
-            (11, &scene.texels),
+            (11, &scene.texels.first),
+            (20, &scene.vertices.rest),
+            (21, &scene.triangles.rest),
+            (22, &scene.texels.rest),
             (12, &pending),
             (16, &counts),
         ];

@@ -95,6 +95,36 @@ struct Texture {
 // as the CPU's `RayCounts` counts them (summed on the host).
 @group(0) @binding(16) var<storage, read_write> ray_counts: array<atomic<u32>>;
 
+// Where the vertices, the triangles or the texels are larger than the adapter binds in one
+// buffer, their second parts (else placeholders never read).
+@group(0) @binding(20) var<storage, read> vertices_rest: array<Vertex>;
+@group(0) @binding(21) var<storage, read> triangles_rest: array<vec4<u32>>;
+@group(0) @binding(22) var<storage, read> texels_rest: array<vec4<f32>>;
+
+fn vertex_at(i: u32) -> Vertex {
+    let n = arrayLength(&vertices);
+    if i < n {
+        return vertices[i];
+    }
+    return vertices_rest[i - n];
+}
+
+fn face_at(i: u32) -> vec4<u32> {
+    let n = arrayLength(&triangles);
+    if i < n {
+        return triangles[i];
+    }
+    return triangles_rest[i - n];
+}
+
+fn texel_at(i: u32) -> vec4<f32> {
+    let n = arrayLength(&texels);
+    if i < n {
+        return texels[i];
+    }
+    return texels_rest[i - n];
+}
+
 var<private> shadow_rays: u32;
 
 const PI: f32 = 3.14159265358979;
@@ -134,7 +164,7 @@ fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
 fn texel(t: Texture, x: i32, y: i32) -> vec4<f32> {
     let xi = wrap_index(x, i32(t.width), t.flags & 3u);
     let yi = wrap_index(y, i32(t.height), (t.flags >> 2u) & 3u);
-    return texels[t.offset + u32(yi) * t.width + u32(xi)];
+    return texel_at(t.offset + u32(yi) * t.width + u32(xi));
 }
 
 // `Texture::sample`: bilinear (or nearest) with the sampler's wrap modes, (0,0) top-left.
@@ -304,10 +334,10 @@ fn main(
         }
         // The hit's surface (`shading_point`): the barycentric point, geometric and
         // interpolated normals turned to the viewer, texture coordinates and vertex colour.
-        let tri = triangles[hit.prim];
-        let a = vertices[tri.x];
-        let b = vertices[tri.y];
-        let c = vertices[tri.z];
+        let tri = face_at(hit.prim);
+        let a = vertex_at(tri.x);
+        let b = vertex_at(tri.y);
+        let c = vertex_at(tri.z);
         let b1 = hit.b1;
         let b2 = hit.b2;
         let b0 = 1.0 - b1 - b2;
