@@ -18,6 +18,34 @@ pub struct SplitArray {
     element: usize,
 }
 
+/// Elements in the first buffer of an array of `capacity` elements of `element` bytes, in
+/// buffers of at most `limit` bytes (0: split at the middle); an error naming `what` and
+/// `adapter` when the array needs more than two.
+fn first_part(
+    what: &str,
+    element: usize,
+    capacity: usize,
+    limit: u64,
+    adapter: &str,
+) -> Result<usize> {
+    let bytes = (capacity * element) as u64;
+    if limit == 0 {
+        return Ok(capacity.div_ceil(2));
+    }
+    let first = ((limit / element as u64) as usize).min(capacity);
+    if capacity - first > first {
+        return Err(Error::Device {
+            message: format!(
+                "{what} need {:.1} MiB, more than twice the {:.1} MiB {adapter} binds in one \
+                 buffer; render this scene with the CPU backend",
+                bytes as f64 / 1048576.0,
+                limit as f64 / 1048576.0,
+            ),
+        });
+    }
+    Ok(first)
+}
+
 impl SplitArray {
     /// Room for `capacity` zeroed elements of `element` bytes, in buffers of at most `limit`
     /// bytes each (`limit` 0: split at the middle whatever the size, the path of an array over
@@ -29,23 +57,7 @@ impl SplitArray {
         capacity: usize,
         limit: u64,
     ) -> Result<SplitArray> {
-        let bytes = (capacity * element) as u64;
-        if limit > 0 && bytes > 2 * limit {
-            return Err(Error::Device {
-                message: format!(
-                    "{what} need {:.1} MiB, more than twice the {:.1} MiB {} binds in one \
-                     buffer; render this scene with the CPU backend",
-                    bytes as f64 / 1048576.0,
-                    limit as f64 / 1048576.0,
-                    gpu.info.name
-                ),
-            });
-        }
-        let split = if limit == 0 {
-            capacity.div_ceil(2)
-        } else {
-            ((limit / element as u64) as usize).min(capacity)
-        };
+        let split = first_part(what, element, capacity, limit, &gpu.info.name)?;
         // A binding may not be empty: an unused part holds one element.
         let buffer = |elements: usize| {
             checked(gpu, what, || {
@@ -97,5 +109,30 @@ impl SplitArray {
     /// Bytes the array holds on the GPU.
     pub fn size(&self) -> u64 {
         self.first.size() + self.rest.size()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_array_fills_the_first_buffer_then_the_second_and_no_third() {
+        const MIB: u64 = 1 << 20;
+        let part = |capacity| first_part("the nodes", 8, capacity, MIB, "Card");
+        assert_eq!(part(1000).unwrap(), 1000);
+        assert_eq!(part(MIB as usize / 8).unwrap(), MIB as usize / 8);
+        assert_eq!(part(MIB as usize / 4).unwrap(), MIB as usize / 8);
+        let e = part(MIB as usize / 4 + 1).unwrap_err().to_string();
+        assert!(
+            e.contains("the nodes need 2.0 MiB")
+                && e.contains("twice the 1.0 MiB Card binds")
+                && e.contains("CPU backend"),
+            "{e}"
+        );
+        // An element that does not divide the limit: the parts hold whole elements.
+        assert!(first_part("t", 36, 50, 100, "Card").is_err());
+        assert_eq!(first_part("t", 36, 4, 100, "Card").unwrap(), 2);
+        assert_eq!(first_part("t", 36, 5, 0, "Card").unwrap(), 3);
     }
 }
