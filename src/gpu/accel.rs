@@ -56,6 +56,19 @@ pub struct Uploads {
     pub bytes: u64,
 }
 
+impl std::fmt::Display for Uploads {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "sent {:.2} MiB: trees laid out {} time(s), {} tree(s) written, {} refit(s) written",
+            self.bytes as f64 / 1048576.0,
+            self.layouts,
+            self.trees,
+            self.refits
+        )
+    }
+}
+
 /// Where one part's arrays sit (its room in each), and the tree written there.
 struct Slot {
     tree: Option<PartTree>,

@@ -162,14 +162,16 @@ pub fn dispatch_rays(
                     resource: b.as_entire_binding(),
                 })
                 .collect();
-            let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("rays"),
-                layout: &layout,
-                entries: &entries,
-            });
-            (group, n.div_ceil(WORKGROUP) as u32)
+            let group = checked(gpu, "binding the buffers", || {
+                gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("rays"),
+                    layout: &layout,
+                    entries: &entries,
+                })
+            })?;
+            Ok((group, n.div_ceil(WORKGROUP) as u32))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let mut encoder = gpu
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());

@@ -63,7 +63,8 @@ fn clip_box(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, d: vec3<f32>, inv_d: vec
 // overlap: both are visited when the ray meets both, the farther one waiting on the stack with
 // where the ray enters it, and skipped once the best hit is nearer than that. At most one child
 // waits per level, so the stack is as deep as the tree.
-fn walk_boxes(o: vec3<f32>, d: vec3<f32>, t_max: f32, p: Part, any: bool) -> HitOut {
+fn walk_boxes(o: vec3<f32>, d: vec3<f32>, t_max: f32, part: u32, any: bool) -> HitOut {
+    let p = parts[part];
     var out: HitOut;
     out.t = t_max;
     out.prim = NO_PRIM;
@@ -161,26 +162,28 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_max: f32, any: bool, count: u32) -> HitOu
     best.b1 = 0.0;
     best.b2 = 0.0;
     for (var i = 0u; i < count; i++) {
-        let p = parts[i];
+        // Only the fields this part's walk needs, not the whole row.
+        let kind = parts[i].kind;
         var lo = o;
         var ld = d;
-        if (p.kind & PART_INSTANCE) != 0u {
-            let world = clip_box(p.world_min, p.world_max, o, d, vec3<f32>(1.0) / d, best.t);
+        if (kind & PART_INSTANCE) != 0u {
+            let world = clip_box(parts[i].world_min, parts[i].world_max, o, d, vec3<f32>(1.0) / d, best.t);
             if world.x > world.y {
                 continue;
             }
-            lo = (p.world_to_object * vec4<f32>(o, 1.0)).xyz;
-            ld = (p.world_to_object * vec4<f32>(d, 0.0)).xyz;
+            let m = parts[i].world_to_object;
+            lo = (m * vec4<f32>(o, 1.0)).xyz;
+            ld = (m * vec4<f32>(d, 0.0)).xyz;
         }
         var h: HitOut;
-        if (p.kind & PART_BOXES) != 0u {
-            h = walk_boxes(lo, ld, best.t, p, any);
+        if (kind & PART_BOXES) != 0u {
+            h = walk_boxes(lo, ld, best.t, i, any);
         } else {
-            h = walk(lo, ld, best.t, p.tree_min, p.tree_max, any, p.node_base, p.ref_base);
+            h = walk(lo, ld, best.t, parts[i].tree_min, parts[i].tree_max, any, parts[i].node_base, parts[i].ref_base);
         }
         if h.prim != NO_PRIM {
             best = h;
-            best.prim = h.prim - p.tri_base + p.prim_offset;
+            best.prim = h.prim - parts[i].tri_base + parts[i].prim_offset;
             if any {
                 break;
             }

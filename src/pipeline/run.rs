@@ -340,7 +340,7 @@ fn run_frames(
             break;
         }
         summary.trace_seconds += stats.trace_seconds();
-        summary.device = summary.device.or_else(|| tracer.device());
+        summary.device = tracer.device();
         summary.rays.add(&stats.rays);
         summary.eyes_traced += stats.view_seconds.len();
         if let Some(rig) = &stats.rig {

@@ -424,10 +424,14 @@ impl<'p> FrameTracer<'p> {
         Ok((traced, stats))
     }
 
-    /// The GPU adapter tracing this pipeline's frames, with its driver and limits, once opened.
+    /// The GPU adapter tracing this pipeline's frames, with its driver and limits, and what it
+    /// was sent so far, once opened.
     pub fn device(&self) -> Option<String> {
         #[cfg(feature = "gpu")]
-        return self.gpu.as_ref().map(|g| g.describe());
+        return self
+            .gpu
+            .as_ref()
+            .map(|g| format!("{}; {}", g.describe(), g.uploads()));
         #[cfg(not(feature = "gpu"))]
         None
     }
