@@ -65,44 +65,25 @@ fn clip_box(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, d: vec3<f32>, inv_d: vec
 // waits per level, so the stack is as deep as the tree.
 fn walk_boxes(o: vec3<f32>, d: vec3<f32>, t_max: f32, part: u32, any: bool) -> HitOut {
     let p = parts[part];
-    var out: HitOut;
-    out.t = t_max;
-    out.prim = NO_PRIM;
-    out.b1 = 0.0;
-    out.b2 = 0.0;
+    var out = HitOut(t_max, NO_PRIM, 0.0, 0.0);
     let inv_d = vec3<f32>(1.0) / d;
     let root = clip_box(p.tree_min, p.tree_max, o, d, inv_d, t_max);
     if root.x > root.y {
         return out;
     }
     let sh = shear_of(d);
-    var best = t_max;
     // Waiting children: node, and where the ray enters it (as bits).
     var stack: array<vec2<u32>, FULL_STACK>;
     var size = 0u;
     var node = p.node_base;
     var near = root.x;
     loop {
-        if near <= best {
+        if near <= out.t {
             let n = node_at(node);
             if (n.y & 3u) == 3u {
-                tally.y += 1u;
                 let first = n.x + p.ref_base;
-                let end = first + (n.y >> 2u);
-                for (var i = first; i < end; i++) {
-                    tally.z += 1u;
-                    let prim = prim_at(i);
-                    let h = intersect(prim, o, sh, best);
-                    if h.x > 0.0 {
-                        best = h.x;
-                        out.t = h.x;
-                        out.prim = prim;
-                        out.b1 = h.y;
-                        out.b2 = h.z;
-                        if any {
-                            return out;
-                        }
-                    }
+                if test_leaf(first, first + (n.y >> 2u), o, sh, &out, any) {
+                    return out;
                 }
             } else {
                 tally.x += 1u;
@@ -111,8 +92,8 @@ fn walk_boxes(o: vec3<f32>, d: vec3<f32>, t_max: f32, part: u32, any: bool) -> H
                 let below_hi = vec3<f32>(box_at(k + 3u), box_at(k + 4u), box_at(k + 5u));
                 let above_lo = vec3<f32>(box_at(k + 6u), box_at(k + 7u), box_at(k + 8u));
                 let above_hi = vec3<f32>(box_at(k + 9u), box_at(k + 10u), box_at(k + 11u));
-                let below = clip_box(below_lo, below_hi, o, d, inv_d, best);
-                let above = clip_box(above_lo, above_hi, o, d, inv_d, best);
+                let below = clip_box(below_lo, below_hi, o, d, inv_d, out.t);
+                let above = clip_box(above_lo, above_hi, o, d, inv_d, out.t);
                 let below_node = node + 1u;
                 let above_node = node + (n.y >> 2u);
                 let in_below = below.x <= below.y;
@@ -156,11 +137,7 @@ fn walk_boxes(o: vec3<f32>, d: vec3<f32>, t_max: f32, part: u32, any: bool) -> H
 // The closest hit among the first `count` parts (or, with `any`, the first found) below
 // `t_max`, its `prim` the global triangle index; each part is walked below the best hit so far.
 fn trace(o: vec3<f32>, d: vec3<f32>, t_max: f32, any: bool, count: u32) -> HitOut {
-    var best: HitOut;
-    best.t = t_max;
-    best.prim = NO_PRIM;
-    best.b1 = 0.0;
-    best.b2 = 0.0;
+    var best = HitOut(t_max, NO_PRIM, 0.0, 0.0);
     for (var i = 0u; i < count; i++) {
         // Only the fields this part's walk needs, not the whole row.
         let kind = parts[i].kind;

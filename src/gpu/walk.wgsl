@@ -188,15 +188,29 @@ fn advance(trail: vec2<u32>, level: u32) -> vec2<u32> {
 // Inner nodes, leaves and triangle tests of the walks this invocation ran.
 var<private> tally: vec3<u32>;
 
+// Tests the references `first..end` of a leaf against the ray, keeping in `hit` any hit nearer
+// than `hit.t`; with `any`, true at the first hit found.
+fn test_leaf(first: u32, end: u32, o: vec3<f32>, sh: Shear, hit: ptr<function, HitOut>, any: bool) -> bool {
+    tally.y += 1u;
+    for (var i = first; i < end; i++) {
+        tally.z += 1u;
+        let p = prim_at(i);
+        let h = intersect(p, o, sh, (*hit).t);
+        if h.x > 0.0 {
+            *hit = HitOut(h.x, p, h.y, h.z);
+            if any {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 // The closest hit of the ray `o + t d` with 0 < t < t_max (or, with `any`, the first hit found)
 // in the tree over the box `box_min`..`box_max` whose root is node `root` and whose leaves'
 // references start at `ref_base`; `prim` (an entry of the triangle array) = NO_PRIM for none.
 fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec3<f32>, any: bool, root: u32, ref_base: u32) -> HitOut {
-    var out: HitOut;
-    out.t = t_max;
-    out.prim = NO_PRIM;
-    out.b1 = 0.0;
-    out.b2 = 0.0;
+    var out = HitOut(t_max, NO_PRIM, 0.0, 0.0);
     let inv_d = vec3<f32>(1.0) / d;
     // The ray's interval inside the scene box (`Aabb::clip`): slabs per axis, a zero component
     // inside its slab leaves the interval as it is.
@@ -220,7 +234,6 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
         return out;
     }
     let sh = shear_of(d);
-    var best = t_max;
     var stack: array<Entry, STACK_LEN>;
     // The ring's newest entry is at `top - 1` (modulo its length); `size` entries are held.
     var top = 0u;
@@ -231,32 +244,13 @@ fn walk(o: vec3<f32>, d: vec3<f32>, t_max: f32, box_min: vec3<f32>, box_max: vec
     var t_min = t_enter;
     var t_far = t_exit;
     loop {
-        if best < t_min {
+        if out.t < t_min {
             break;
         }
         let n = node_at(node);
         if (n.y & 3u) == 3u {
             let first = n.x + ref_base;
-            let end = first + (n.y >> 2u);
-            var done = false;
-            tally.y += 1u;
-            for (var i = first; i < end; i++) {
-                tally.z += 1u;
-                let p = prim_at(i);
-                let h = intersect(p, o, sh, best);
-                if h.x > 0.0 {
-                    best = h.x;
-                    out.t = h.x;
-                    out.prim = p;
-                    out.b1 = h.y;
-                    out.b2 = h.z;
-                    if any {
-                        done = true;
-                        break;
-                    }
-                }
-            }
-            if done {
+            if test_leaf(first, first + (n.y >> 2u), o, sh, &out, any) {
                 break;
             }
             // The deepest level whose second child is still to visit; none left ends the walk.
