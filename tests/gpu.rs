@@ -236,6 +236,23 @@ mod on_gpu {
             .trace(&gpu, &on_gpu, &none, GpuWalk::Stack, true)
             .unwrap();
         assert!(tracer.read_hits(&gpu, &none).unwrap().is_empty());
+        // The integrator over a frame with nothing in it: every camera ray sees the background.
+        use stereotrace::accel::TwoLevel;
+        use stereotrace::gpu::{GpuScene, GpuWhitted};
+        use stereotrace::render::{ShadingModel, TraceSettings};
+        use stereotrace::scene::pose::Geometry;
+        on_gpu.update(&gpu, &TwoLevel::default(), 0).unwrap();
+        let nothing = GpuScene::upload(&gpu, &Geometry::default(), &[], &[], &[]).unwrap();
+        let settings = TraceSettings {
+            max_depth: 4,
+            shading: ShadingModel::CookTorrance,
+            background: Vec3::new(0.25, 0.5, 0.75),
+        };
+        let (radiance, _) = GpuWhitted::new(&gpu)
+            .unwrap()
+            .radiance(&gpu, &on_gpu, &nothing, &settings, &r, &[f32::INFINITY])
+            .unwrap();
+        assert_eq!(radiance, vec![settings.background]);
     }
 
     /// A frame's parts on the GPU: static geometry, a rigid instance and a refitted deforming

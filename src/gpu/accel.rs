@@ -222,7 +222,7 @@ impl GpuAccel {
             parts: super::buffers::storage(
                 gpu,
                 "the parts",
-                &[0; 144],
+                bytemuck::bytes_of(&GpuPart::zeroed()),
                 wgpu::BufferUsages::empty(),
             )?,
             part_count: 0,
@@ -456,6 +456,12 @@ impl GpuAccel {
             })
             .collect();
         self.part_count = rows.len() as u32;
+        // A binding holds at least one row; with nothing to hit, a zeroed one the walk never reads.
+        let rows = if rows.is_empty() {
+            vec![GpuPart::zeroed()]
+        } else {
+            rows
+        };
         let bytes: &[u8] = bytemuck::cast_slice(&rows);
         self.parts = super::buffers::storage(gpu, "the parts", bytes, wgpu::BufferUsages::empty())?;
         self.uploads.bytes += bytes.len() as u64;
