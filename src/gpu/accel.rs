@@ -5,7 +5,8 @@
 //! A frame writes only what changed: for an instance that moved, its row of the table; for a
 //! refitted mesh, its boxes and triangles; for a rebuilt one, its tree, in place when it fits
 //! the room it had. The first frame, a part added or removed, or a tree outgrowing its room
-//! lays all the arrays out again; a part that was rebuilt once gets a quarter more room then.
+//! lays all the arrays out again, giving a quarter more room to every part rebuilt since the
+//! last layout (the one that outgrew its room among them).
 //!
 //! Triangles: world parts' triangles sit at their global index (the first `triangle_count`
 //! entries), so their leaf references are global indices; instances' object-space triangles
@@ -171,6 +172,15 @@ fn same_tree(a: &PartTree, b: &PartTree) -> bool {
     }
 }
 
+/// Whether `new` replaces `old` with another tree (a rebuild), rather than being the same tree
+/// or the same topology refitted.
+fn rebuilt(old: &PartTree, new: &PartTree) -> bool {
+    match (old, new) {
+        (PartTree::Refit(a), PartTree::Refit(b)) => !Arc::ptr_eq(a.topology(), b.topology()),
+        _ => !same_tree(old, new),
+    }
+}
+
 /// A triangle as the walk reads it (nine floats).
 fn flat(t: &[Vec3; 3]) -> [f32; 9] {
     let [p, q, r] = t.map(|v| v.to_array());
@@ -273,16 +283,12 @@ impl GpuAccel {
             if same_tree(written, &part.tree) {
                 continue;
             }
-            let refit = match (written, &part.tree) {
-                (PartTree::Refit(a), PartTree::Refit(b)) => Arc::ptr_eq(a.topology(), b.topology()),
-                _ => false,
-            };
-            if refit {
-                self.write_boxes_and_triangles(gpu, i, view);
-                self.uploads.refits += 1;
-            } else {
+            if rebuilt(written, &part.tree) {
                 self.write_part(gpu, i, view);
                 self.slots[i].rebuilt = true;
+            } else {
+                self.write_boxes_and_triangles(gpu, i, view);
+                self.uploads.refits += 1;
             }
             self.slots[i].tree = Some(part.tree.clone());
         }
@@ -292,15 +298,6 @@ impl GpuAccel {
     /// What was sent so far.
     pub fn uploads(&self) -> Uploads {
         self.uploads
-    }
-
-    /// Bytes the arrays and the table hold on the GPU.
-    pub fn resident_bytes(&self) -> u64 {
-        [&self.nodes, &self.prim_refs, &self.triangles, &self.boxes]
-            .iter()
-            .map(|a| a.size())
-            .sum::<u64>()
-            + self.parts.size()
     }
 
     /// Arrays sized for `views` (with room to grow for parts rebuilt since the last layout),
@@ -316,8 +313,15 @@ impl GpuAccel {
         let mut ends = [0, 0, 0, triangle_count];
         let mut slots = Vec::with_capacity(views.len());
         for (i, view) in views.iter().enumerate() {
-            let rebuilt = self.slots.get(i).is_some_and(|s| s.rebuilt);
-            let room = view.sizes().map(|n| if rebuilt { n + n / 4 } else { n });
+            // Rebuilt since the last layout, or now (a tree that outgrew its room).
+            let grows = self.slots.get(i).is_some_and(|s| {
+                s.rebuilt
+                    || s.tree
+                        .as_ref()
+                        .zip(trees[i].as_ref())
+                        .is_some_and(|(a, b)| rebuilt(a, b))
+            });
+            let room = view.sizes().map(|n| if grows { n + n / 4 } else { n });
             let mut ranges = [0..0, 0..0, 0..0, 0..0];
             for k in 0..4 {
                 ranges[k] = ends[k]..ends[k] + room[k];
