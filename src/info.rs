@@ -69,7 +69,7 @@ pub fn scene_info(
         primitives: scene.meshes.iter().map(|m| m.primitives.len()).sum(),
         triangles,
         materials: scene.materials.len() - 1,
-        textures_decoded: scene.textures.iter().filter(|t| t.is_some()).count(),
+        textures_decoded: scene.textures.len(),
         point_lights: count(|k| matches!(k, LightKind::Point)),
         spot_lights: count(|k| matches!(k, LightKind::Spot { .. })),
         directional_lights: count(|k| matches!(k, LightKind::Directional)),

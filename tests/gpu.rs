@@ -572,8 +572,8 @@ mod on_gpu {
                     shading,
                     background: Vec3::new(0.1, 0.2, 0.3),
                 };
-                let cpu = Integrator {
-                    scene: SceneView {
+                let cpu = Integrator::new(
+                    SceneView {
                         accel: &tree,
                         geometry: g,
                         materials: &scene.materials,
@@ -581,7 +581,7 @@ mod on_gpu {
                         lights: &lights,
                     },
                     settings,
-                };
+                );
                 let counts = std::cell::Cell::new(Default::default());
                 let (got, _) = whitted
                     .radiance(&gpu, &on_gpu, &gpu_scene, &settings, &rays, &t_max)

@@ -84,20 +84,20 @@ fn integrate(
 ) -> Vec<Vec3> {
     let tris = g.triangle_list();
     let tree = KdTree::build(tris, BuildParams::default());
-    let integ = Integrator {
-        scene: SceneView {
+    let integ = Integrator::new(
+        SceneView {
             accel: &tree,
             geometry: g,
             materials,
             textures: &[],
             lights,
         },
-        settings: TraceSettings {
+        TraceSettings {
             max_depth,
             shading: ShadingModel::CookTorrance,
             background: bg,
         },
-    };
+    );
     let counts = Cell::new(RayCounts::default());
     rays.iter()
         .map(|r| integ.radiance(r, f32::INFINITY, &counts))

@@ -296,8 +296,8 @@ impl<'p> FrameTracer<'p> {
             shading: spec.render.shading,
             background: Vec3::from(spec.render.background),
         };
-        let integrator = Integrator {
-            scene: SceneView {
+        let integrator = Integrator::new(
+            SceneView {
                 accel: &accel,
                 geometry: &posed.geometry,
                 materials: &p.scene.materials,
@@ -305,7 +305,7 @@ impl<'p> FrameTracer<'p> {
                 lights: &lights,
             },
             settings,
-        };
+        );
         stats.rig = plan_rig(&mut self.planner, &mut self.prober, frame, || {
             frame_probe(p, &posed, bounds, &accel)
         });

@@ -1,13 +1,15 @@
 //! The Whitted integrator of WHITTED.md section 4: emission, direct light from every punctual light
 //! through shadow rays, a Fresnel-weighted mirror ray for smooth opaque surfaces, and reflection plus
-//! refraction (exact Fresnel, total internal reflection) for smooth dielectrics, to `max_depth`.
+//! refraction (exact Fresnel, total internal reflection) for smooth dielectrics, to `max_depth`;
+//! with the material inputs of WHITTED-materials.md: textures on every slot, normal maps, and
+//! alpha coverage (MASK hits that do not exist for any ray, BLEND surfaces over what lies behind).
 
 use super::shading::{self, ShadingModel, SurfacePoint, brdf, dielectric_fresnel, schlick};
 use crate::accel::{Hit, Intersect, LANES, Ray};
 use crate::scene::light::{Light, LightKind};
-use crate::scene::material::{Material, Texture};
+use crate::scene::material::{AlphaMode, Material, NormalMap, Texture, TextureRef};
 use crate::scene::pose::Geometry;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use smallvec::SmallVec;
 use std::cell::Cell;
 
@@ -52,13 +54,27 @@ pub struct SceneView<'a, A: Intersect> {
     pub accel: &'a A,
     pub geometry: &'a Geometry,
     pub materials: &'a [Material],
-    pub textures: &'a [Option<Texture>],
+    pub textures: &'a [Texture],
     pub lights: &'a [Light],
 }
 
 pub struct Integrator<'a, A: Intersect> {
     pub scene: SceneView<'a, A>,
     pub settings: TraceSettings,
+    /// Whether any material is MASK or BLEND: only then do hits need their coverage tested and
+    /// shadow rays their crossings walked, so opaque scenes pay nothing for alpha.
+    transparent: bool,
+}
+
+impl<'a, A: Intersect> Integrator<'a, A> {
+    pub fn new(scene: SceneView<'a, A>, settings: TraceSettings) -> Self {
+        let transparent = scene.materials.iter().any(Material::is_transparent);
+        Integrator {
+            scene,
+            settings,
+            transparent,
+        }
+    }
 }
 
 /// Offset a point off a surface along its geometric normal `n` (pointing to the side the new ray
@@ -88,6 +104,10 @@ pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
 /// shadowed by that surface.
 const SHADOW_EPSILON: f32 = 1e-4;
 
+/// The least `dot(n, v)` a normal-mapped shading normal keeps (WHITTED-materials.md section 3,
+/// the facing clamp): bumps tilted away from the viewer still get light and a mirror direction.
+const FACING_MIN: f32 = 0.01;
+
 /// Geometry of a hit, with normals flipped to the side the ray came from.
 struct Shading {
     p: Vec3,
@@ -98,8 +118,12 @@ struct Shading {
     /// The ray arrived on the front (counter-clockwise) face.
     front: bool,
     uv: [Vec2; 2],
-    color: Vec3,
+    /// COLOR_0 (RGB tint and alpha coverage).
+    color: Vec4,
     material: u32,
+    /// The triangle's vertices and the hit's barycentrics (b0, b1, b2), for the tangents.
+    vertices: [usize; 3],
+    barycentric: Vec3,
 }
 
 /// A hit's surface, as shading sees it.
@@ -107,9 +131,16 @@ struct Surface<'m> {
     sh: Shading,
     mat: &'m Material,
     point: SurfacePoint,
+    /// Emitted radiance (factor, texture and strength).
+    emissive: Vec3,
+    /// Coverage of a BLEND surface (1 for every other).
+    alpha: f32,
     /// Direction to the viewer.
     v: Vec3,
     glass: bool,
+    /// The shading normal comes from a normal map: rays it would send below the surface are
+    /// dropped (WHITTED-materials.md section 3).
+    mapped: bool,
 }
 
 /// A light that reaches a hit unless its shadow ray is blocked.
@@ -236,6 +267,8 @@ impl<A: Intersect> Integrator<'_, A> {
             bump(counts, |c| c.primary += n as u64);
             self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
         }
+        // A known hit may be a cut-out too: the other view saw it through the same hole.
+        self.pass_cut_outs(rays, t_max, &mut hits[..n], counts);
         let record = match &mut primary {
             Primary::Record(r) => Some(&mut r[..n]),
             _ => None,
@@ -255,7 +288,160 @@ impl<A: Intersect> Integrator<'_, A> {
         assert!(n <= LANES && t_max.len() == n && out.len() == n);
         let mut hits = [None; LANES];
         self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
+        self.pass_cut_outs(rays, t_max, &mut hits[..n], counts);
         self.shade(rays, &hits[..n], &[(0, 0); LANES], depth, None, counts, out);
+    }
+
+    /// MASK hits whose coverage is below the cutoff do not exist for any ray: each such lane
+    /// goes on from the far side of the hit, same direction, for the rest of its range, until
+    /// it finds a hit that exists or nothing (WHITTED-materials.md section 4). The hit's `t`
+    /// stays measured from the first origin.
+    fn pass_cut_outs(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        hits: &mut [Option<Hit>],
+        counts: &Cell<RayCounts>,
+    ) {
+        if !self.transparent {
+            return;
+        }
+        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        current[..rays.len()].copy_from_slice(rays);
+        let mut travelled = [0.0f32; LANES];
+        loop {
+            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let mut limits = [0.0; LANES];
+            let mut lanes = [0usize; LANES];
+            let mut k = 0;
+            for (i, hit) in hits.iter().enumerate() {
+                let Some(h) = hit else { continue };
+                let ray = Ray::new(current[i].origin, current[i].dir);
+                let local = Hit {
+                    t: h.t - travelled[i],
+                    ..*h
+                };
+                if !self.cut_out(&ray, &local) {
+                    continue;
+                }
+                let sh = self.shading_point(&ray, &local);
+                let side = if sh.ng.dot(ray.dir) >= 0.0 {
+                    sh.ng
+                } else {
+                    -sh.ng
+                };
+                current[i] = Ray::new(offset_origin(sh.p, side), ray.dir);
+                travelled[i] = h.t;
+                (next[k], limits[k], lanes[k]) = (current[i], t_max[i] - h.t, i);
+                k += 1;
+            }
+            if k == 0 {
+                return;
+            }
+            bump(counts, |c| c.secondary += k as u64);
+            let mut found = [None; LANES];
+            self.scene
+                .accel
+                .closest_hits(&next[..k], &limits[..k], &mut found[..k]);
+            for (&i, f) in lanes[..k].iter().zip(found) {
+                hits[i] = f.map(|h| Hit {
+                    t: h.t + travelled[i],
+                    ..h
+                });
+            }
+        }
+    }
+
+    /// Whether a hit is on a MASK surface where its coverage is below the cutoff.
+    fn cut_out(&self, ray: &Ray, hit: &Hit) -> bool {
+        let material = self.scene.geometry.triangle_materials[hit.prim as usize];
+        let mat = &self.scene.materials[material as usize];
+        match mat.alpha {
+            AlphaMode::Mask { cutoff } => {
+                self.base_color(mat, &self.shading_point(ray, hit)).w < cutoff
+            }
+            _ => false,
+        }
+    }
+
+    /// The fraction of a light's shadow rays that arrives: 0 behind an opaque, transmissive or
+    /// uncut MASK surface; cut-outs are passed; each BLEND surface crossed lets `1 - a` through
+    /// (untinted, WHITTED-materials.md section 4). Without MASK or BLEND materials it is the
+    /// any-hit answer.
+    fn visibility(
+        &self,
+        light: &Light,
+        rays: &[Ray],
+        t_max: &[f32],
+        out: &mut [f32],
+        counts: &Cell<RayCounts>,
+    ) {
+        let n = rays.len();
+        if !self.transparent {
+            let mut blocked = [false; LANES];
+            self.scene.accel.any_hits(rays, t_max, &mut blocked[..n]);
+            for (o, b) in out.iter_mut().zip(blocked) {
+                *o = if b { 0.0 } else { 1.0 };
+            }
+            return;
+        }
+        out.fill(1.0);
+        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        let mut limits = [0.0; LANES];
+        let mut lanes = [0usize; LANES];
+        current[..n].copy_from_slice(rays);
+        limits[..n].copy_from_slice(t_max);
+        for (i, l) in lanes[..n].iter_mut().enumerate() {
+            *l = i;
+        }
+        let mut k = n;
+        let mut first = true;
+        while k > 0 {
+            if !first {
+                bump(counts, |c| c.shadow += k as u64);
+            }
+            first = false;
+            let mut found = [None; LANES];
+            self.scene
+                .accel
+                .closest_hits(&current[..k], &limits[..k], &mut found[..k]);
+            let mut still = 0;
+            for j in 0..k {
+                let (i, ray) = (lanes[j], current[j]);
+                let Some(hit) = found[j] else { continue };
+                let material = self.scene.geometry.triangle_materials[hit.prim as usize];
+                let mat = &self.scene.materials[material as usize];
+                let sh = self.shading_point(&ray, &hit);
+                let passes = match mat.alpha {
+                    AlphaMode::Mask { cutoff } => self.base_color(mat, &sh).w < cutoff,
+                    AlphaMode::Blend => {
+                        out[i] *= 1.0 - self.base_color(mat, &sh).w;
+                        out[i] > 0.0
+                    }
+                    AlphaMode::Opaque => false,
+                };
+                if !passes {
+                    out[i] = 0.0;
+                    continue;
+                }
+                // On from the far side of the crossing: to the light's position (spawn_ray_to)
+                // or, for a directional light, along the same direction without end.
+                let side = if sh.ng.dot(ray.dir) >= 0.0 {
+                    sh.ng
+                } else {
+                    -sh.ng
+                };
+                let origin = offset_origin(sh.p, side);
+                let dir = match light.kind {
+                    LightKind::Directional => ray.dir,
+                    LightKind::Point | LightKind::Spot { .. } => light.position - origin,
+                };
+                (current[still], limits[still], lanes[still]) =
+                    (Ray::new(origin, dir), limits[j], i);
+                still += 1;
+            }
+            k = still;
+        }
     }
 
     /// Radiance of each lane from its hit (`None`: the background), recursing below
@@ -286,8 +472,12 @@ impl<A: Intersect> Integrator<'_, A> {
                     lit: shadows[i].0,
                     shadowed: shadows[i].1,
                     lobe: match &surfaces[i] {
-                        Some(s) if !s.glass && s.mat.roughness != 0.0 => {
-                            s.mat.roughness * s.mat.roughness
+                        Some(s)
+                            if !s.glass
+                                && s.point.roughness != 0.0
+                                && s.mat.alpha != AlphaMode::Blend =>
+                        {
+                            s.point.roughness * s.point.roughness
                         }
                         _ => -1.0,
                     },
@@ -296,23 +486,25 @@ impl<A: Intersect> Integrator<'_, A> {
         }
         for (i, o) in out.iter_mut().enumerate() {
             *o = match &surfaces[i] {
-                Some(s) if s.glass => s.mat.emissive,
-                Some(s) => s.mat.emissive + direct[i],
+                Some(s) if s.glass => s.emissive,
+                Some(s) if s.mat.alpha == AlphaMode::Blend => s.alpha * (s.emissive + direct[i]),
+                Some(s) => s.emissive + direct[i],
                 None => self.settings.background,
             };
         }
         if depth >= self.settings.max_depth {
             return;
         }
-        // Each lane's mirror ray and (glass) refraction ray, traced as two packets; a lane adds
-        // the reflection before the refraction, as WHITTED.md's order has it.
-        let mut bounces = [[None::<Bounce>; 2]; LANES];
+        // Each lane's mirror ray, (glass) refraction ray and (BLEND) continuation ray, traced as
+        // three packets; a lane adds the reflection before the refraction, as WHITTED.md's order
+        // has it, and what lies behind a BLEND surface last.
+        let mut bounces = [[None::<Bounce>; 3]; LANES];
         for (i, s) in surfaces.iter().enumerate() {
             if let Some(s) = s {
                 bounces[i] = self.bounces(&rays[i], s);
             }
         }
-        for kind in 0..2 {
+        for kind in 0..3 {
             let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
             let mut lanes = [0usize; LANES];
             let mut k = 0;
@@ -366,7 +558,7 @@ impl<A: Intersect> Integrator<'_, A> {
         let mut shadow = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
         let mut limits = [0.0; LANES];
         let mut traced = [0usize; LANES];
-        let mut blocked = [false; LANES];
+        let mut visible = [0.0f32; LANES];
         let (mut n_traced, mut n_known) = (0u64, 0u64);
         for light in 0..self.scene.lights.len() {
             let bit = if light < RECORDED_LIGHTS {
@@ -377,7 +569,7 @@ impl<A: Intersect> Integrator<'_, A> {
             // This light's queries in lane order (at most one per lane), each answered by a
             // known bit or by a ray.
             let mut members = [0usize; LANES];
-            let mut blocked_of = [false; LANES];
+            let mut visible_of = [0.0f32; LANES];
             let (mut n, mut k) = (0, 0);
             for (index, (lane, q)) in queries.iter().enumerate() {
                 if q.light != light {
@@ -385,7 +577,7 @@ impl<A: Intersect> Integrator<'_, A> {
                 }
                 let (lit, shadowed) = known[*lane];
                 if (lit | shadowed) & bit != 0 {
-                    blocked_of[n] = shadowed & bit != 0;
+                    visible_of[n] = if shadowed & bit != 0 { 0.0 } else { 1.0 };
                 } else {
                     (shadow[k], limits[k], traced[k]) = (q.shadow, q.t_max, n);
                     k += 1;
@@ -397,24 +589,28 @@ impl<A: Intersect> Integrator<'_, A> {
                 continue;
             }
             if k > 0 {
-                self.scene
-                    .accel
-                    .any_hits(&shadow[..k], &limits[..k], &mut blocked[..k]);
-                for (&m, &b) in traced[..k].iter().zip(&blocked[..k]) {
-                    blocked_of[m] = b;
+                let light = &self.scene.lights[light];
+                self.visibility(light, &shadow[..k], &limits[..k], &mut visible[..k], counts);
+                for (&m, &b) in traced[..k].iter().zip(&visible[..k]) {
+                    visible_of[m] = b;
                 }
             }
             n_traced += k as u64;
             n_known += (n - k) as u64;
-            for (&index, &b) in members[..n].iter().zip(&blocked_of[..n]) {
+            for (&index, &vis) in members[..n].iter().zip(&visible_of[..n]) {
                 let (lane, q) = &queries[index];
-                if b {
+                // A light seen through BLEND surfaces is neither lit nor shadowed: another view
+                // traces its own shadow ray there.
+                if vis == 0.0 {
                     answers[*lane].1 |= bit;
-                } else {
+                    continue;
+                }
+                if vis == 1.0 {
                     answers[*lane].0 |= bit;
-                    if let Some(s) = &surfaces[*lane] {
-                        direct[*lane] += self.direct_term(s, q);
-                    }
+                }
+                if let Some(s) = &surfaces[*lane] {
+                    let term = self.direct_term(s, q);
+                    direct[*lane] += if vis == 1.0 { term } else { vis * term };
                 }
             }
         }
@@ -429,7 +625,30 @@ impl<A: Intersect> Integrator<'_, A> {
     /// `max_depth`, with their weights: Fresnel-weighted reflection and refraction for glass
     /// (none under total internal reflection), Schlick-weighted reflection for a smooth opaque
     /// surface, nothing for a rough one.
-    fn bounces(&self, ray: &Ray, s: &Surface) -> [Option<Bounce>; 2] {
+    fn bounces(&self, ray: &Ray, s: &Surface) -> [Option<Bounce>; 3] {
+        let [reflection, refraction] = self.specular_bounces(ray, s);
+        let mut out = [reflection, refraction, None];
+        if s.mapped {
+            // A mirror ray below the geometric surface, or a refracted ray above it, is not
+            // traced: its weight is dropped (WHITTED-materials.md section 3).
+            let ng = s.sh.ng;
+            out[0] = out[0].filter(|b| b.dir.dot(ng) > 0.0);
+            out[1] = out[1].filter(|b| b.dir.dot(ng) < 0.0);
+        }
+        if s.mat.alpha == AlphaMode::Blend {
+            for b in out.iter_mut().flatten() {
+                b.weight *= s.alpha;
+            }
+            out[2] = Some(Bounce {
+                dir: ray.dir,
+                weight: Vec3::splat(1.0 - s.alpha),
+            });
+        }
+        out
+    }
+
+    /// The mirror and refraction rays of `bounces`.
+    fn specular_bounces(&self, ray: &Ray, s: &Surface) -> [Option<Bounce>; 2] {
         let (sh, mat, base, v) = (&s.sh, s.mat, s.point.base_color, s.v);
         let cos_i = sh.n.dot(v).clamp(0.0, 1.0);
         let reflect_dir = (ray.dir + 2.0 * cos_i * sh.n).normalize();
@@ -445,9 +664,10 @@ impl<A: Intersect> Integrator<'_, A> {
                 weight: Vec3::splat(f),
             };
             [Some(reflection), refraction]
-        } else if mat.roughness == 0.0 {
-            let weight = (1.0 - mat.metallic) * schlick(Vec3::splat(0.04), cos_i)
-                + mat.metallic * shading::schlick(base, cos_i);
+        } else if s.point.roughness == 0.0 {
+            let metallic = s.point.metallic;
+            let weight = (1.0 - metallic) * schlick(Vec3::splat(0.04), cos_i)
+                + metallic * shading::schlick(base, cos_i);
             [
                 Some(Bounce {
                     dir: reflect_dir,
@@ -460,21 +680,86 @@ impl<A: Intersect> Integrator<'_, A> {
         }
     }
 
+    /// The material's values at a hit (WHITTED-materials.md section 1): base colour, roughness
+    /// and metalness, emission and coverage from factors, textures and COLOR_0; the shading
+    /// normal from the normal map.
     fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'_> {
-        let sh = self.shading_point(ray, hit);
+        let mut sh = self.shading_point(ray, hit);
         let mat = &self.scene.materials[sh.material as usize];
-        let point = SurfacePoint {
-            base_color: self.base_color(mat, &sh),
-            metallic: mat.metallic,
-            roughness: mat.roughness,
-        };
+        let v = -ray.dir;
+        let base = self.base_color(mat, &sh);
+        let (mut metallic, mut roughness) = (mat.metallic, mat.roughness);
+        if let Some(t) = self.texel(&mat.metallic_roughness_texture, &sh) {
+            roughness *= t.y;
+            metallic *= t.z;
+        }
+        let mut emissive = mat.emissive;
+        if let Some(t) = self.texel(&mat.emissive_texture, &sh) {
+            emissive *= t.truncate();
+        }
+        if let Some(map) = &mat.normal_texture {
+            self.map_normal(map, &mut sh, v);
+        }
         Surface {
             sh,
             mat,
-            point,
-            v: -ray.dir,
+            point: SurfacePoint {
+                base_color: base.truncate(),
+                metallic,
+                roughness,
+            },
+            emissive,
+            alpha: if mat.alpha == AlphaMode::Blend {
+                base.w
+            } else {
+                1.0
+            },
+            v,
             glass: mat.transmission >= 0.5,
+            mapped: mat.normal_texture.is_some(),
         }
+    }
+
+    /// A texture slot's value at a shading point (`None`: the material has no texture there).
+    fn texel(&self, slot: &Option<TextureRef>, sh: &Shading) -> Option<Vec4> {
+        let slot = slot.as_ref()?;
+        Some(self.scene.textures[slot.texture].sample(slot.uv(&sh.uv)))
+    }
+
+    /// The normal map's normal in the interpolated tangent frame (WHITTED-materials.md section
+    /// 2), turned to the viewer's side and clamped to face it (section 3). A vertex without a
+    /// tangent (a degenerate UV triangle) keeps the interpolated normal.
+    fn map_normal(&self, map: &NormalMap, sh: &mut Shading, v: Vec3) {
+        let side = if sh.front { 1.0 } else { -1.0 };
+        let n = sh.n * side;
+        let g = self.scene.geometry;
+        let [i0, i1, i2] = sh.vertices;
+        let b = sh.barycentric;
+        let (Some(t0), Some(t1), Some(t2)) =
+            (g.tangents.get(i0), g.tangents.get(i1), g.tangents.get(i2))
+        else {
+            return;
+        };
+        let interp = t0.truncate() * b.x + t1.truncate() * b.y + t2.truncate() * b.z;
+        let t = (interp - n * n.dot(interp)).normalize_or_zero();
+        let mapped = if t == Vec3::ZERO {
+            n
+        } else {
+            let bitangent = n.cross(t) * t0.w;
+            let c = self.scene.textures[map.texture.texture].sample(map.texture.uv(&sh.uv));
+            let local = Vec3::new(
+                (2.0 * c.x - 1.0) * map.scale,
+                (2.0 * c.y - 1.0) * map.scale,
+                2.0 * c.z - 1.0,
+            );
+            (local.x * t + local.y * bitangent + local.z * n).normalize_or(n)
+        };
+        let mut shading = mapped * side;
+        let facing = shading.dot(v);
+        if facing < FACING_MIN {
+            shading = (shading + (FACING_MIN - facing) * v).normalize();
+        }
+        sh.n = shading;
     }
 
     /// What an unblocked light adds at a surface.
@@ -551,7 +836,7 @@ impl<A: Intersect> Integrator<'_, A> {
             let t = &g.tex_coords[k];
             t[i0] * b0 + t[i1] * b1 + t[i2] * b2
         });
-        let color = (g.colors[i0] * b0 + g.colors[i1] * b1 + g.colors[i2] * b2).truncate();
+        let color = g.colors[i0] * b0 + g.colors[i1] * b1 + g.colors[i2] * b2;
         Shading {
             p,
             n: ns * s,
@@ -560,15 +845,16 @@ impl<A: Intersect> Integrator<'_, A> {
             uv,
             color,
             material: g.triangle_materials[hit.prim as usize],
+            vertices: [i0, i1, i2],
+            barycentric: Vec3::new(b0, b1, b2),
         }
     }
 
-    fn base_color(&self, mat: &Material, sh: &Shading) -> Vec3 {
-        let mut c = mat.base_color.truncate() * sh.color;
-        if let Some(tr) = mat.base_color_texture
-            && let Some(Some(tex)) = self.scene.textures.get(tr.texture)
-        {
-            c *= tex.sample(sh.uv[tr.tex_coord]).truncate();
+    /// Base colour (RGB) and coverage (A): factor x texture x COLOR_0.
+    fn base_color(&self, mat: &Material, sh: &Shading) -> Vec4 {
+        let mut c = mat.base_color * sh.color;
+        if let Some(t) = self.texel(&mat.base_color_texture, sh) {
+            c *= t;
         }
         c
     }

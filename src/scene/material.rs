@@ -1,22 +1,44 @@
-//! Surface materials: the glTF metallic-roughness model (factors and the base-colour texture),
-//! emission, KHR_materials_transmission and KHR_materials_ior. Textures are decoded here, and only
-//! those some material samples: a scene pays for the images it uses.
+//! Surface materials: the glTF metallic-roughness model with every texture a Whitted renderer
+//! reads (base colour, metallic-roughness, normal, emissive), `KHR_texture_transform` on each slot,
+//! `alphaMode`, `KHR_materials_emissive_strength`, `KHR_materials_transmission` and
+//! `KHR_materials_ior` (the convention is WHITTED-materials.md in `tests/data`). Textures are
+//! decoded here, once per transfer function a material samples them with, and only those some
+//! material samples: a scene pays for the images it uses. Occlusion textures are never decoded:
+//! the specification makes them darken indirect (ambient) light only, and Whitted has none.
 
 use super::buffers::{read_uri, view_bytes};
 use crate::error::{Error, Result};
 use glam::{Vec2, Vec3, Vec4};
-use std::collections::BTreeSet;
+use std::collections::BTreeMap;
 use std::path::Path;
+
+/// glTF `alphaMode`: what the coverage `a` (base colour alpha x texel alpha x COLOR_0 alpha)
+/// does to a hit (WHITTED-materials.md section 4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AlphaMode {
+    /// Coverage is ignored.
+    Opaque,
+    /// A hit with `a < cutoff` does not exist for any ray; the rest is opaque.
+    Mask { cutoff: f32 },
+    /// The surface is blended "over" what lies behind it: `a L_surf + (1 - a) L_behind`.
+    Blend,
+}
 
 #[derive(Clone, Debug)]
 pub struct Material {
     pub name: Option<String>,
-    /// Linear RGBA factor (alpha is read but the Whitted model ignores coverage).
+    /// Linear RGBA factor; its alpha is a factor of the coverage.
     pub base_color: Vec4,
     pub base_color_texture: Option<TextureRef>,
     pub metallic: f32,
     pub roughness: f32,
+    /// Roughness in G and metalness in B, multiplying the factors.
+    pub metallic_roughness_texture: Option<TextureRef>,
+    pub normal_texture: Option<NormalMap>,
+    /// `emissiveFactor` times `KHR_materials_emissive_strength` (1 when absent).
     pub emissive: Vec3,
+    pub emissive_texture: Option<TextureRef>,
+    pub alpha: AlphaMode,
     /// KHR_materials_transmission factor; the integrator treats > 0.5 as a smooth dielectric.
     pub transmission: f32,
     /// KHR_materials_ior (glTF default 1.5).
@@ -33,7 +55,11 @@ impl Default for Material {
             base_color_texture: None,
             metallic: 1.0,
             roughness: 1.0,
+            metallic_roughness_texture: None,
+            normal_texture: None,
             emissive: Vec3::ZERO,
+            emissive_texture: None,
+            alpha: AlphaMode::Opaque,
             transmission: 0.0,
             ior: 1.5,
             double_sided: false,
@@ -41,12 +67,92 @@ impl Default for Material {
     }
 }
 
+impl Material {
+    /// The texture slots the material samples, by their glTF names.
+    pub fn texture_slots(&self) -> impl Iterator<Item = (&'static str, &TextureRef)> {
+        [
+            ("baseColorTexture", self.base_color_texture.as_ref()),
+            (
+                "metallicRoughnessTexture",
+                self.metallic_roughness_texture.as_ref(),
+            ),
+            (
+                "normalTexture",
+                self.normal_texture.as_ref().map(|n| &n.texture),
+            ),
+            ("emissiveTexture", self.emissive_texture.as_ref()),
+        ]
+        .into_iter()
+        .filter_map(|(name, slot)| slot.map(|s| (name, s)))
+    }
+
+    /// Whether the material needs the texture coordinates and colours of a hit before it knows
+    /// whether the hit exists (MASK) or what lies behind it matters (BLEND).
+    pub fn is_transparent(&self) -> bool {
+        self.alpha != AlphaMode::Opaque
+    }
+}
+
+/// A normal map: its texture and the `scale` of its tangent-space X and Y.
+#[derive(Clone, Copy, Debug)]
+pub struct NormalMap {
+    pub texture: TextureRef,
+    pub scale: f32,
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct TextureRef {
     /// Index into `Scene::textures`.
     pub texture: usize,
-    /// Which TEXCOORD_n set the texture reads.
+    /// Which TEXCOORD_n set the texture reads (KHR_texture_transform's `texCoord` applied).
     pub tex_coord: usize,
+    pub transform: Option<UvTransform>,
+}
+
+impl TextureRef {
+    /// The texture coordinates this slot samples at, from a hit's two interpolated sets.
+    #[inline]
+    pub fn uv(&self, sets: &[Vec2; 2]) -> Vec2 {
+        let uv = sets[self.tex_coord];
+        match &self.transform {
+            Some(t) => t.apply(uv),
+            None => uv,
+        }
+    }
+}
+
+/// KHR_texture_transform as two rows of the affine map `T * R * S` on `(u, v, 1)`: scale first,
+/// then rotation, then offset, with +rotation turning +u toward -v (the extension's text, which
+/// Blender, three.js and the Khronos sample model follow; WHITTED-materials.md section 5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    pub u: Vec3,
+    pub v: Vec3,
+}
+
+impl UvTransform {
+    pub fn new(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> UvTransform {
+        let (sin, cos) = rotation.sin_cos();
+        UvTransform {
+            u: Vec3::new(cos * scale[0], sin * scale[1], offset[0]),
+            v: Vec3::new(-sin * scale[0], cos * scale[1], offset[1]),
+        }
+    }
+
+    #[inline]
+    pub fn apply(&self, uv: Vec2) -> Vec2 {
+        let p = uv.extend(1.0);
+        Vec2::new(self.u.dot(p), self.v.dot(p))
+    }
+}
+
+/// How a slot's stored values become linear ones (the glTF specification per slot).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Encoding {
+    /// RGB through the sRGB EOTF, alpha linear: base colour and emissive textures.
+    Srgb,
+    /// Every channel as stored: metallic-roughness and normal textures.
+    Linear,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,6 +165,9 @@ pub enum Wrap {
 /// A decoded texture: linear RGBA texels, top row first, and its sampler.
 #[derive(Clone, Debug)]
 pub struct Texture {
+    /// The glTF texture it was decoded from.
+    pub source: usize,
+    pub encoding: Encoding,
     pub width: usize,
     pub height: usize,
     pub texels: Vec<Vec4>,
@@ -115,69 +224,149 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
-/// Materials of the document plus the default material at the end; textures that materials use.
-pub(super) fn load_materials(
-    file: &Path,
-    document: &gltf::Document,
-    buffers: &[Vec<u8>],
-    warnings: &mut Vec<String>,
-) -> Result<(Vec<Material>, Vec<Option<Texture>>)> {
-    let mut used_textures = BTreeSet::new();
-    let mut ignored = BTreeSet::new();
-    let mut materials = Vec::new();
-    for m in document.materials() {
-        let pbr = m.pbr_metallic_roughness();
-        let base_color_texture = pbr.base_color_texture().map(|info| {
-            used_textures.insert(info.texture().index());
-            TextureRef {
-                texture: info.texture().index(),
-                tex_coord: info.tex_coord() as usize,
+/// What loading a document's materials gathers: each (texture, encoding) a slot samples gets
+/// one entry of the decoded list, in the order first named.
+struct Loader<'a> {
+    file: &'a Path,
+    decoded: BTreeMap<(usize, Encoding), usize>,
+    order: Vec<(usize, Encoding)>,
+}
+
+impl Loader<'_> {
+    /// A slot's texture reference, its texture coordinate set and transform checked.
+    fn slot(
+        &mut self,
+        object: &str,
+        info: (gltf::Texture, u32),
+        transform: Option<gltf::texture::TextureTransform>,
+        encoding: Encoding,
+    ) -> Result<TextureRef> {
+        let (texture, tex_coord) = info;
+        let mut tex_coord = tex_coord;
+        let transform = match transform {
+            Some(t) => {
+                let at = format!("{object}.extensions.KHR_texture_transform");
+                let (offset, rotation, scale) = (t.offset(), t.rotation(), t.scale());
+                if !offset
+                    .iter()
+                    .chain(&scale)
+                    .chain([&rotation])
+                    .all(|v| v.is_finite())
+                {
+                    return Err(Error::scene(
+                        self.file,
+                        at,
+                        format!(
+                            "offset, rotation and scale must be finite, got offset {offset:?}, \
+                             rotation {rotation}, scale {scale:?}"
+                        ),
+                    ));
+                }
+                if let Some(set) = t.tex_coord() {
+                    tex_coord = set;
+                }
+                Some(UvTransform::new(offset, rotation, scale))
             }
-        });
-        if let Some(tr) = base_color_texture
-            && tr.tex_coord > 1
-        {
+            None => None,
+        };
+        if tex_coord > 1 {
             return Err(Error::scene(
-                file,
-                format!(
-                    "materials[{}].pbrMetallicRoughness.baseColorTexture",
-                    m.index().unwrap_or(0)
-                ),
-                format!(
-                    "texCoord {} is not supported (only TEXCOORD_0 and TEXCOORD_1)",
-                    tr.tex_coord
-                ),
+                self.file,
+                object,
+                format!("texCoord {tex_coord} is not supported (only TEXCOORD_0 and TEXCOORD_1)"),
             ));
         }
-        if pbr.metallic_roughness_texture().is_some() {
-            ignored.insert("metallicRoughnessTexture");
+        let key = (texture.index(), encoding);
+        let next = self.order.len();
+        let index = *self.decoded.entry(key).or_insert(next);
+        if index == next {
+            self.order.push(key);
         }
-        if m.normal_texture().is_some() {
-            ignored.insert("normalTexture");
-        }
+        Ok(TextureRef {
+            texture: index,
+            tex_coord: tex_coord as usize,
+            transform,
+        })
+    }
+
+    fn material(&mut self, m: &gltf::Material, notes: &mut Notes) -> Result<Material> {
+        let index = m.index().unwrap_or(0);
+        let at = |key: &str| format!("materials[{index}].{key}");
+        let pbr = m.pbr_metallic_roughness();
+        let base_color_texture = pbr
+            .base_color_texture()
+            .map(|i| {
+                self.slot(
+                    &at("pbrMetallicRoughness.baseColorTexture"),
+                    (i.texture(), i.tex_coord()),
+                    i.texture_transform(),
+                    Encoding::Srgb,
+                )
+            })
+            .transpose()?;
+        let metallic_roughness_texture = pbr
+            .metallic_roughness_texture()
+            .map(|i| {
+                self.slot(
+                    &at("pbrMetallicRoughness.metallicRoughnessTexture"),
+                    (i.texture(), i.tex_coord()),
+                    i.texture_transform(),
+                    Encoding::Linear,
+                )
+            })
+            .transpose()?;
+        let emissive_texture = m
+            .emissive_texture()
+            .map(|i| {
+                self.slot(
+                    &at("emissiveTexture"),
+                    (i.texture(), i.tex_coord()),
+                    i.texture_transform(),
+                    Encoding::Srgb,
+                )
+            })
+            .transpose()?;
+        let normal_texture = match m.normal_texture() {
+            Some(n) => {
+                let scale = n.scale();
+                if !scale.is_finite() {
+                    return Err(Error::scene(
+                        self.file,
+                        at("normalTexture.scale"),
+                        format!("must be a finite number, got {scale}"),
+                    ));
+                }
+                // The gltf crate reads no KHR_texture_transform on a normal texture; one there
+                // would also have to turn the tangent frame (WHITTED-materials.md: not covered).
+                let texture = self.slot(
+                    &at("normalTexture"),
+                    (n.texture(), n.tex_coord()),
+                    None,
+                    Encoding::Linear,
+                )?;
+                Some(NormalMap { texture, scale })
+            }
+            None => None,
+        };
         if m.occlusion_texture().is_some() {
-            ignored.insert("occlusionTexture");
-        }
-        if m.emissive_texture().is_some() {
-            ignored.insert("emissiveTexture");
+            notes.occlusion = true;
         }
         let transmission = m.transmission();
         if transmission
             .as_ref()
             .is_some_and(|t| t.transmission_texture().is_some())
         {
-            ignored.insert("transmissionTexture");
+            notes.ignored.push("transmissionTexture");
         }
         let bc = pbr.base_color_factor();
-        let index = m.index().unwrap_or(0);
         // The schema's ranges: no factor may give infinite, NaN or negative radiance.
         let in_unit = |key: &str, values: &[f32]| {
             if values.iter().all(|v| (0.0..=1.0).contains(v)) {
                 Ok(())
             } else {
                 Err(Error::scene(
-                    file,
-                    format!("materials[{index}].{key}"),
+                    self.file,
+                    at(key),
                     format!("must be numbers in [0, 1], got {values:?}"),
                 ))
             }
@@ -202,43 +391,109 @@ pub(super) fn load_materials(
             && !(ior.is_finite() && ior > 0.0)
         {
             return Err(Error::scene(
-                file,
-                format!("materials[{index}].extensions.KHR_materials_ior.ior"),
+                self.file,
+                at("extensions.KHR_materials_ior.ior"),
                 format!("must be a finite number > 0, got {ior}"),
             ));
         }
-        materials.push(Material {
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        if !(strength.is_finite() && strength >= 0.0) {
+            return Err(Error::scene(
+                self.file,
+                at("extensions.KHR_materials_emissive_strength.emissiveStrength"),
+                format!("must be a finite number >= 0, got {strength}"),
+            ));
+        }
+        let alpha = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            gltf::material::AlphaMode::Mask => {
+                let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                if !(cutoff.is_finite() && cutoff >= 0.0) {
+                    return Err(Error::scene(
+                        self.file,
+                        at("alphaCutoff"),
+                        format!("must be a finite number >= 0, got {cutoff}"),
+                    ));
+                }
+                AlphaMode::Mask { cutoff }
+            }
+        };
+        Ok(Material {
             name: m.name().map(str::to_owned),
             base_color: Vec4::from(bc),
             base_color_texture,
-            metallic: pbr.metallic_factor().clamp(0.0, 1.0),
-            roughness: pbr.roughness_factor().clamp(0.0, 1.0),
-            emissive: Vec3::from(m.emissive_factor()),
+            metallic: pbr.metallic_factor(),
+            roughness: pbr.roughness_factor(),
+            metallic_roughness_texture,
+            normal_texture,
+            emissive: Vec3::from(m.emissive_factor()) * strength,
+            emissive_texture,
+            alpha,
             transmission: transmission.map_or(0.0, |t| t.transmission_factor()),
             ior: m.ior().unwrap_or(1.5),
             double_sided: m.double_sided(),
-        });
+        })
     }
+}
+
+/// What the loader tells the user about inputs the renderer does not use.
+#[derive(Default)]
+struct Notes {
+    ignored: Vec<&'static str>,
+    occlusion: bool,
+}
+
+/// Materials of the document plus the default material at the end; the textures they sample,
+/// decoded once per transfer function.
+pub(super) fn load_materials(
+    file: &Path,
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Material>, Vec<Texture>)> {
+    let mut loader = Loader {
+        file,
+        decoded: BTreeMap::new(),
+        order: Vec::new(),
+    };
+    let mut notes = Notes::default();
+    let mut materials = document
+        .materials()
+        .map(|m| loader.material(&m, &mut notes))
+        .collect::<Result<Vec<_>>>()?;
     materials.push(Material::default());
-    if !ignored.is_empty() {
-        let list: Vec<&str> = ignored.into_iter().collect();
+    if notes.occlusion {
         warnings.push(format!(
-            "{}: material textures not used by the Whitted model, factors only: {}",
-            file.display(),
-            list.join(", ")
+            "{}: occlusionTexture has no effect by design: the glTF specification lets it darken \
+             only indirect (ambient) light, which the Whitted model does not have",
+            file.display()
         ));
     }
-
-    let mut textures: Vec<Option<Texture>> = vec![None; document.textures().len()];
-    for t in document.textures() {
-        if used_textures.contains(&t.index()) {
-            textures[t.index()] = Some(load_texture(file, buffers, &t)?);
-        }
+    if !notes.ignored.is_empty() {
+        notes.ignored.sort_unstable();
+        notes.ignored.dedup();
+        warnings.push(format!(
+            "{}: material textures ignored (factors only): {}",
+            file.display(),
+            notes.ignored.join(", ")
+        ));
     }
+    let textures: Vec<gltf::Texture> = document.textures().collect();
+    let textures = loader
+        .order
+        .iter()
+        .map(|&(t, encoding)| load_texture(file, buffers, &textures[t], encoding))
+        .collect::<Result<_>>()?;
     Ok((materials, textures))
 }
 
-fn load_texture(file: &Path, buffers: &[Vec<u8>], t: &gltf::Texture) -> Result<Texture> {
+fn load_texture(
+    file: &Path,
+    buffers: &[Vec<u8>],
+    t: &gltf::Texture,
+    encoding: Encoding,
+) -> Result<Texture> {
     let image = t.source();
     let object = format!("images[{}]", image.index());
     let bytes: Vec<u8> = match image.source() {
@@ -249,18 +504,15 @@ fn load_texture(file: &Path, buffers: &[Vec<u8>], t: &gltf::Texture) -> Result<T
         .map_err(|e| Error::scene(file, &object, format!("cannot decode image: {e}")))?
         .to_rgba32f();
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
-    // The image crate returns the stored (sRGB-encoded) values scaled to [0,1]; base colour textures
-    // are sRGB per the glTF specification, alpha is linear.
+    // The image crate returns the stored values scaled to [0,1]; colour slots are sRGB-encoded
+    // per the glTF specification, alpha and the data slots are linear.
+    let decode: fn(f32) -> f32 = match encoding {
+        Encoding::Srgb => srgb_to_linear,
+        Encoding::Linear => |x| x,
+    };
     let texels = decoded
         .pixels()
-        .map(|p| {
-            Vec4::new(
-                srgb_to_linear(p[0]),
-                srgb_to_linear(p[1]),
-                srgb_to_linear(p[2]),
-                p[3],
-            )
-        })
+        .map(|p| Vec4::new(decode(p[0]), decode(p[1]), decode(p[2]), p[3]))
         .collect();
     let sampler = t.sampler();
     let wrap = |w: gltf::texture::WrappingMode| match w {
@@ -269,6 +521,8 @@ fn load_texture(file: &Path, buffers: &[Vec<u8>], t: &gltf::Texture) -> Result<T
         gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
     };
     Ok(Texture {
+        source: t.index(),
+        encoding,
         width,
         height,
         texels,

@@ -3,6 +3,7 @@
 //! (a ray tracer has no width to give them).
 
 use super::buffers::check_accessor;
+use super::material::Material;
 use crate::error::{Error, Result};
 use glam::{Vec2, Vec3, Vec4};
 use gltf::mesh::Mode;
@@ -17,8 +18,12 @@ pub struct Primitive {
     pub normals: Option<Vec<Vec3>>,
     /// TEXCOORD_0 and TEXCOORD_1 (zero when absent).
     pub tex_coords: [Option<Vec<Vec2>>; 2],
-    /// COLOR_0 as linear RGBA (multiplies the base colour, per the specification).
+    /// COLOR_0 as linear RGBA (multiplies the base colour and the coverage, per the
+    /// specification).
     pub colors: Option<Vec<Vec4>>,
+    /// Tangents (xyz unit, w = +-1 the bitangent's sign), only where the material has a normal
+    /// map: TANGENT as stored, else MikkTSpace on the normal map's texture coordinates.
+    pub tangents: Option<Vec<Vec4>>,
     pub triangles: Vec<[u32; 3]>,
     /// Index into `Scene::materials` (the last entry is the default material).
     pub material: usize,
@@ -35,6 +40,8 @@ pub type SkinSet = (Vec<[u16; 4]>, Vec<[f32; 4]>);
 pub struct MorphTarget {
     pub positions: Option<Vec<Vec3>>,
     pub normals: Option<Vec<Vec3>>,
+    /// Read only for primitives whose tangents are kept.
+    pub tangents: Option<Vec<Vec3>>,
 }
 
 #[derive(Clone, Debug)]
@@ -55,7 +62,7 @@ pub(super) fn load_mesh(
     file: &Path,
     buffers: &[Vec<u8>],
     mesh: &gltf::Mesh,
-    default_material: usize,
+    materials: &[Material],
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
     let mut primitives = Vec::new();
@@ -72,13 +79,7 @@ pub(super) fn load_mesh(
             ));
             continue;
         }
-        primitives.push(load_primitive(
-            file,
-            buffers,
-            &prim,
-            &object,
-            default_material,
-        )?);
+        primitives.push(load_primitive(file, buffers, &prim, &object, materials)?);
     }
     Ok(Mesh {
         name: mesh.name().map(str::to_owned),
@@ -92,7 +93,7 @@ fn load_primitive(
     buffers: &[Vec<u8>],
     prim: &gltf::Primitive,
     object: &str,
-    default_material: usize,
+    materials: &[Material],
 ) -> Result<Primitive> {
     for (semantic, accessor) in prim.attributes() {
         check_accessor(
@@ -175,18 +176,59 @@ fn load_primitive(
     }
     let triangles = triangulate(prim.mode(), &indices);
 
+    // The default material is the last one (`load_materials`).
+    let material = prim.material().index().unwrap_or(materials.len() - 1);
+    let tangents = match &materials[material].normal_texture {
+        // A TANGENT no normal map uses is not read.
+        None => None,
+        Some(map) => {
+            let set = map.texture.tex_coord;
+            let Some(uv) = &tex_coords[set] else {
+                return Err(Error::scene(
+                    file,
+                    format!("{object}.attributes"),
+                    format!(
+                        "materials[{material}].normalTexture reads TEXCOORD_{set}, which the \
+                         primitive does not have"
+                    ),
+                ));
+            };
+            Some(match reader.read_tangents() {
+                Some(it) => {
+                    let t: Vec<Vec4> = it.map(Vec4::from).collect();
+                    let attribute = format!("{object}.attributes.TANGENT");
+                    check_count(file, &attribute, t.len(), n)?;
+                    check_tangents(file, &attribute, &t)?;
+                    t
+                }
+                None => generated_tangents(&positions, normals.as_deref(), uv, &triangles),
+            })
+        }
+    };
+
     let mut morph_targets = Vec::new();
-    for (t, (p, nrm, _)) in reader.read_morph_targets().enumerate() {
+    for (t, (p, nrm, tan)) in reader.read_morph_targets().enumerate() {
         let positions: Option<Vec<Vec3>> = p.map(|it| it.map(Vec3::from).collect());
         let normals: Option<Vec<Vec3>> = nrm.map(|it| it.map(Vec3::from).collect());
-        for (what, v) in [("POSITION", &positions), ("NORMAL", &normals)] {
+        let tangent_deltas: Option<Vec<Vec3>> = tan
+            .filter(|_| tangents.is_some())
+            .map(|it| it.map(Vec3::from).collect());
+        for (what, v) in [
+            ("POSITION", &positions),
+            ("NORMAL", &normals),
+            ("TANGENT", &tangent_deltas),
+        ] {
             if let Some(v) = v {
                 let obj = format!("{object}.targets[{t}].{what}");
                 check_count(file, &obj, v.len(), n)?;
                 check_finite(file, &obj, v)?;
             }
         }
-        morph_targets.push(MorphTarget { positions, normals });
+        morph_targets.push(MorphTarget {
+            positions,
+            normals,
+            tangents: tangent_deltas,
+        });
     }
 
     let mut skin_sets = Vec::new();
@@ -227,8 +269,9 @@ fn load_primitive(
         normals,
         tex_coords,
         colors,
+        tangents,
         triangles,
-        material: prim.material().index().unwrap_or(default_material),
+        material,
         morph_targets,
         skin_sets,
     })
@@ -252,6 +295,96 @@ fn triangulate(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
             .collect(),
         _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
     }
+}
+
+/// TANGENT as the glTF specification defines it: a finite, non-zero xyz and w = +1 or -1 (within
+/// float rounding of a quantizing exporter).
+fn check_tangents(file: &Path, object: &str, tangents: &[Vec4]) -> Result<()> {
+    let bad = tangents.iter().position(|t| {
+        !(t.is_finite() && t.truncate().length_squared() > 0.0 && (t.w.abs() - 1.0).abs() < 1e-3)
+    });
+    match bad {
+        None => Ok(()),
+        Some(i) => Err(Error::scene(
+            file,
+            object,
+            format!(
+                "element {i} is {:?}: a tangent needs a finite, non-zero xyz and w = +1 or -1",
+                tangents[i]
+            ),
+        )),
+    }
+}
+
+/// MikkTSpace tangents (what the glTF specification asks for when TANGENT is absent), per vertex.
+/// MikkTSpace's bitangent follows +v, glTF's image up is -v: it is fed (u, 1 - v), so that its
+/// w is glTF's (WHITTED-materials.md section 2). A vertex shared by triangles keeps the last
+/// tangent written; MikkTSpace gives shared vertices one tangent except across mirrored UV
+/// islands, where glTF exporters split vertices anyway. Without normals, the face normal stands in.
+fn generated_tangents(
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    uv: &[Vec2],
+    triangles: &[[u32; 3]],
+) -> Vec<Vec4> {
+    struct Mikk<'a> {
+        positions: &'a [Vec3],
+        normals: Option<&'a [Vec3]>,
+        uv: &'a [Vec2],
+        triangles: &'a [[u32; 3]],
+        out: Vec<Vec4>,
+    }
+    impl Mikk<'_> {
+        fn vertex(&self, face: usize, vert: usize) -> usize {
+            self.triangles[face][vert] as usize
+        }
+    }
+    impl bevy_mikktspace::Geometry for Mikk<'_> {
+        fn num_faces(&self) -> usize {
+            self.triangles.len()
+        }
+        fn num_vertices_of_face(&self, _: usize) -> usize {
+            3
+        }
+        fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.positions[self.vertex(face, vert)].to_array()
+        }
+        fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+            match self.normals {
+                Some(n) => n[self.vertex(face, vert)].to_array(),
+                None => {
+                    let [a, b, c] = self.triangles[face].map(|i| self.positions[i as usize]);
+                    (b - a).cross(c - a).normalize_or_zero().to_array()
+                }
+            }
+        }
+        fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+            let uv = self.uv[self.vertex(face, vert)];
+            [uv.x, 1.0 - uv.y]
+        }
+        fn set_tangent(
+            &mut self,
+            tangent: Option<bevy_mikktspace::TangentSpace>,
+            face: usize,
+            vert: usize,
+        ) {
+            if let Some(t) = tangent {
+                let v = self.vertex(face, vert);
+                self.out[v] = Vec4::from(t.tangent_encoded());
+            }
+        }
+    }
+    let mut mikk = Mikk {
+        positions,
+        normals,
+        uv,
+        triangles,
+        out: vec![Vec4::ZERO; positions.len()],
+    };
+    // Its error type has no variants: generation cannot fail, only leave vertices unset
+    // (degenerate triangles), which keep a zero tangent and so their unperturbed normal.
+    let _ = bevy_mikktspace::generate_tangents(&mut mikk);
+    mikk.out
 }
 
 fn check_count(file: &Path, object: &str, got: usize, want: usize) -> Result<()> {

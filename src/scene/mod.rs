@@ -29,6 +29,8 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_materials_transmission",
     "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
 ];
 
 /// A node's local transform as stored: animation targets TRS, a matrix stays a matrix.
@@ -124,8 +126,9 @@ pub struct Scene {
     pub meshes: Vec<Mesh>,
     /// The document's materials followed by the glTF default material.
     pub materials: Vec<Material>,
-    /// Decoded textures by glTF texture index (`None`: no material samples it).
-    pub textures: Vec<Option<Texture>>,
+    /// Decoded textures: each glTF texture some material samples, once per transfer function
+    /// it is sampled with (`TextureRef::texture` indexes this).
+    pub textures: Vec<Texture>,
     pub lights: Vec<LightDef>,
     pub cameras: Vec<CameraDef>,
     pub animations: Vec<Animation>,
@@ -243,10 +246,9 @@ impl Scene {
         let document = &gltf.document;
         let (materials, textures) =
             material::load_materials(path, document, &buffers, &mut warnings)?;
-        let default_material = materials.len() - 1;
         let meshes = document
             .meshes()
-            .map(|m| mesh::load_mesh(path, &buffers, &m, default_material, &mut warnings))
+            .map(|m| mesh::load_mesh(path, &buffers, &m, &materials, &mut warnings))
             .collect::<Result<Vec<_>>>()?;
         let nodes: Vec<Node> = document.nodes().map(load_node).collect();
         let nodes_len = nodes.len();

@@ -14,6 +14,9 @@ pub struct Geometry {
     pub normals: Vec<Vec3>,
     pub tex_coords: [Vec<Vec2>; 2],
     pub colors: Vec<Vec4>,
+    /// World tangents (xyz unit, w the bitangent's sign) of normal-mapped primitives, zero for
+    /// the other vertices; empty when no primitive of the scene is normal-mapped.
+    pub tangents: Vec<Vec4>,
     pub triangles: Vec<[u32; 3]>,
     /// Material index per triangle.
     pub triangle_materials: Vec<u32>,
@@ -112,6 +115,10 @@ pub fn pose(scene: &Scene, overrides: &[NodeOverrides]) -> PosedScene {
         node_world: world.clone(),
         ..Default::default()
     };
+    let tangents = scene
+        .meshes
+        .iter()
+        .any(|m| m.primitives.iter().any(|p| p.tangents.is_some()));
     for n in scene.traversal() {
         let node = &scene.nodes[n];
         let m = world[n];
@@ -125,8 +132,7 @@ pub fn pose(scene: &Scene, overrides: &[NodeOverrides]) -> PosedScene {
             let skin = node.skin.map(|s| joint_matrices(scene, s, &world));
             append_mesh(
                 &mut out.geometry,
-                scene,
-                mesh,
+                (scene, mesh, tangents),
                 &m,
                 &weights,
                 skin.as_deref(),
@@ -172,10 +178,11 @@ fn rigid(m: &Mat4) -> Mat4 {
     )
 }
 
+/// Appends mesh `mesh` of `scene` posed by `m` (or its skin's joints) to `g`, with tangents
+/// when `tangents` says the scene keeps them.
 fn append_mesh(
     g: &mut Geometry,
-    scene: &Scene,
-    mesh: usize,
+    (scene, mesh, tangents): (&Scene, usize, bool),
     m: &Mat4,
     weights: &[f32],
     skin: Option<&[(Mat4, Mat3)]>,
@@ -190,6 +197,7 @@ fn append_mesh(
         // Morph deltas first (DESIGN.md: before skinning).
         let mut positions = prim.positions.clone();
         let mut normals = prim.normals.clone();
+        let mut prim_tangents = prim.tangents.clone().filter(|_| tangents);
         for (target, &w) in prim.morph_targets.iter().zip(weights) {
             if w == 0.0 {
                 continue;
@@ -200,7 +208,18 @@ fn append_mesh(
             if let (Some(ns), Some(d)) = (normals.as_mut(), &target.normals) {
                 ns.iter_mut().zip(d).for_each(|(n, d)| *n += w * *d);
             }
+            if let (Some(ts), Some(d)) = (prim_tangents.as_mut(), &target.tangents) {
+                ts.iter_mut()
+                    .zip(d)
+                    .for_each(|(t, d)| *t += (w * *d).extend(0.0));
+            }
         }
+        // Tangents are surface directions: they follow the mesh's 3x3 (or each joint's),
+        // not the normals' inverse transpose (WHITTED-materials.md section 1). A mirroring
+        // transform flips the bitangent cross(N, T), so w flips with it.
+        let tangent_of = |t: Vec4, m3: Mat3, w_sign: f32| {
+            (m3 * t.truncate()).normalize_or_zero().extend(t.w * w_sign)
+        };
         match (skin, prim.skin_sets.is_empty()) {
             (Some(joints), false) => {
                 // Skinned: only the joints place the mesh (the mesh node's own transform is
@@ -226,6 +245,18 @@ fn append_mesh(
                     }
                     g.positions.push(p);
                     g.normals.push(n.normalize_or_zero());
+                    if let Some(ts) = &prim_tangents {
+                        let mut t = Vec3::ZERO;
+                        for (js, ws) in &prim.skin_sets {
+                            for k in 0..4 {
+                                if let Some((jm, _)) = joints.get(js[v][k] as usize) {
+                                    t += ws[v][k] * (Mat3::from_mat4(*jm) * ts[v].truncate());
+                                }
+                            }
+                        }
+                        g.tangents
+                            .push(tangent_of(t.extend(ts[v].w), Mat3::IDENTITY, 1.0));
+                    }
                 }
             }
             _ => {
@@ -237,7 +268,16 @@ fn append_mesh(
                         .extend(ns.iter().map(|&n| (normal_matrix * n).normalize_or_zero())),
                     None => g.normals.extend(std::iter::repeat_n(Vec3::ZERO, count)),
                 }
+                if let Some(ts) = &prim_tangents {
+                    let m3 = Mat3::from_mat4(*m);
+                    let w_sign = m3.determinant().signum();
+                    g.tangents
+                        .extend(ts.iter().map(|&t| tangent_of(t, m3, w_sign)));
+                }
             }
+        }
+        if tangents && prim_tangents.is_none() {
+            g.tangents.extend(std::iter::repeat_n(Vec4::ZERO, count));
         }
         for (set, uv) in prim.tex_coords.iter().enumerate() {
             match uv {
