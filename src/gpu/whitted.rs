@@ -14,7 +14,7 @@ use crate::accel::Ray;
 use crate::error::Result;
 use crate::render::{ShadingModel, TraceSettings};
 use crate::scene::light::{Light, LightKind};
-use crate::scene::material::{Material, Texture, Wrap};
+use crate::scene::material::{AlphaMode, Material, Texture, TextureRef, Wrap};
 use crate::scene::pose::Geometry;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -26,23 +26,59 @@ struct Vertex {
     u0: f32,
     n: [f32; 3],
     v0: f32,
-    color: [f32; 3],
+    /// COLOR_0, alpha included.
+    color: [f32; 4],
     u1: f32,
     v1: f32,
-    pad: [f32; 3],
+    pad: [f32; 2],
+    /// Zero where the primitive is not normal-mapped.
+    tangent: [f32; 4],
+}
+
+/// `Slot` in `whitted.wgsl`: a texture slot with its texture coordinate set and its
+/// KHR_texture_transform rows (the identity without one; exact, since 1 u + 0 v + 0 = u).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuSlot {
+    u: [f32; 3],
+    /// Index into the texture headers, or -1: no texture.
+    texture: i32,
+    v: [f32; 3],
+    tex_coord: u32,
+}
+
+impl GpuSlot {
+    fn of(slot: Option<&TextureRef>) -> GpuSlot {
+        let (u, v) = slot
+            .and_then(|s| s.transform)
+            .map_or((Vec3::X, Vec3::Y), |t| (t.u, t.v));
+        GpuSlot {
+            u: u.to_array(),
+            texture: slot.map_or(-1, |s| s.texture as i32),
+            v: v.to_array(),
+            tex_coord: slot.map_or(0, |s| s.tex_coord as u32),
+        }
+    }
 }
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct GpuMaterial {
-    base_color: [f32; 3],
-    metallic: f32,
+    base_color: [f32; 4],
     emissive: [f32; 3],
+    metallic: f32,
     roughness: f32,
     transmission: f32,
     ior: f32,
-    texture: i32,
-    tex_coord: u32,
+    /// 0 opaque, 1 mask, 2 blend.
+    alpha_mode: u32,
+    alpha_cutoff: f32,
+    normal_scale: f32,
+    pad: [f32; 2],
+    base_color_slot: GpuSlot,
+    metallic_roughness_slot: GpuSlot,
+    normal_slot: GpuSlot,
+    emissive_slot: GpuSlot,
 }
 
 #[repr(C)]
@@ -74,7 +110,8 @@ struct FrameParams {
     first: u32,
     count: u32,
     parts: u32,
-    pad1: u32,
+    /// 1 where a material is MASK or BLEND: hits test their coverage, shadow rays walk on.
+    transparent: u32,
     background: [f32; 3],
     max_depth: u32,
     shading: u32,
@@ -99,6 +136,7 @@ pub struct GpuScene {
     textures: wgpu::Buffer,
     texels: SplitArray,
     light_count: u32,
+    transparent: bool,
 }
 
 /// A storage buffer of `items` that a frame may write again, holding one zeroed item when there
@@ -127,7 +165,7 @@ impl GpuScene {
         gpu: &Gpu,
         geometry: &Geometry,
         materials: &[Material],
-        textures: &[Option<Texture>],
+        textures: &[Texture],
         lights: &[Light],
     ) -> Result<GpuScene> {
         let limit = binding_limit(gpu);
@@ -140,7 +178,7 @@ impl GpuScene {
         gpu: &Gpu,
         geometry: &Geometry,
         materials: &[Material],
-        textures: &[Option<Texture>],
+        textures: &[Texture],
         lights: &[Light],
     ) -> Result<GpuScene> {
         Self::upload_within(gpu, geometry, materials, textures, lights, 0)
@@ -150,7 +188,7 @@ impl GpuScene {
         gpu: &Gpu,
         geometry: &Geometry,
         materials: &[Material],
-        textures: &[Option<Texture>],
+        textures: &[Texture],
         lights: &[Light],
         limit: u64,
     ) -> Result<GpuScene> {
@@ -162,39 +200,44 @@ impl GpuScene {
             .zip(&g.triangle_materials)
             .map(|(&[a, b, c], &m)| [a, b, c, m])
             .collect();
-        // Textures that decoded, packed one after another; a material's index moves with them.
+        // The decoded textures packed one after another, in the scene's order.
         let mut headers = Vec::new();
         let mut texels = Vec::new();
-        let mut moved = vec![-1i32; textures.len()];
-        for (i, t) in textures.iter().enumerate() {
-            if let Some(t) = t {
-                moved[i] = headers.len() as i32;
-                headers.push(GpuTexture {
-                    offset: texels.len() as u32,
-                    width: t.width as u32,
-                    height: t.height as u32,
-                    flags: wrap_code(t.wrap[0])
-                        | wrap_code(t.wrap[1]) << 2
-                        | if t.nearest { 16 } else { 0 },
-                });
-                texels.extend(t.texels.iter().map(|v| v.to_array()));
-            }
+        for t in textures {
+            headers.push(GpuTexture {
+                offset: texels.len() as u32,
+                width: t.width as u32,
+                height: t.height as u32,
+                flags: wrap_code(t.wrap[0])
+                    | wrap_code(t.wrap[1]) << 2
+                    | if t.nearest { 16 } else { 0 },
+            });
+            texels.extend(t.texels.iter().map(|v| v.to_array()));
         }
+        let transparent = materials.iter().any(Material::is_transparent);
         let materials: Vec<GpuMaterial> = materials
             .iter()
             .map(|m| {
-                let texture = m
-                    .base_color_texture
-                    .map_or(-1, |r| moved.get(r.texture).copied().unwrap_or(-1));
+                let (alpha_mode, alpha_cutoff) = match m.alpha {
+                    AlphaMode::Opaque => (0, 0.0),
+                    AlphaMode::Mask { cutoff } => (1, cutoff),
+                    AlphaMode::Blend => (2, 0.0),
+                };
                 GpuMaterial {
-                    base_color: m.base_color.truncate().to_array(),
-                    metallic: m.metallic,
+                    base_color: m.base_color.to_array(),
                     emissive: m.emissive.to_array(),
+                    metallic: m.metallic,
                     roughness: m.roughness,
                     transmission: m.transmission,
                     ior: m.ior,
-                    texture,
-                    tex_coord: m.base_color_texture.map_or(0, |r| r.tex_coord as u32),
+                    alpha_mode,
+                    alpha_cutoff,
+                    normal_scale: m.normal_texture.map_or(1.0, |n| n.scale),
+                    pad: [0.0; 2],
+                    base_color_slot: GpuSlot::of(m.base_color_texture.as_ref()),
+                    metallic_roughness_slot: GpuSlot::of(m.metallic_roughness_texture.as_ref()),
+                    normal_slot: GpuSlot::of(m.normal_texture.as_ref().map(|n| &n.texture)),
+                    emissive_slot: GpuSlot::of(m.emissive_texture.as_ref()),
                 }
             })
             .collect();
@@ -209,6 +252,7 @@ impl GpuScene {
             lights: array(gpu, "the lights", &gpu_lights)?,
             textures: array(gpu, "the textures", &headers)?,
             texels: SplitArray::filled(gpu, "the texels", &texels, limit)?,
+            transparent,
         })
     }
 
@@ -266,16 +310,13 @@ fn vertices_of(g: &Geometry) -> Vec<Vertex> {
             Vertex {
                 p: g.positions[i].to_array(),
                 n: g.normals.get(i).copied().unwrap_or_default().to_array(),
-                color: g
-                    .colors
-                    .get(i)
-                    .map_or(Vec3::ONE, |c| c.truncate())
-                    .to_array(),
+                color: g.colors.get(i).map_or([1.0; 4], |c| c.to_array()),
                 u0: uv(0).x,
                 v0: uv(0).y,
                 u1: uv(1).x,
                 v1: uv(1).y,
-                pad: [0.0; 3],
+                pad: [0.0; 2],
+                tangent: g.tangents.get(i).map_or([0.0; 4], |t| t.to_array()),
             }
         })
         .collect()
@@ -371,7 +412,9 @@ impl GpuWhitted {
             wgpu::BufferUsages::COPY_SRC,
         )?;
         let counts_back = readback(gpu, "the ray counts' read-back buffer", counts.size())?;
-        // Each invocation's waiting rays: one per level and the one traced (48 bytes each), for
+        // Each invocation's waiting rays: one per level and the one traced (48 bytes each: a
+        // hit pops one and pushes at most two, mirror and refraction or mirror and BLEND
+        // continuation, since transmissive materials are opaque to alpha), for
         // as many rays per dispatch as fit the adapter's binding limit, at most 2^16.
         let stride = settings.max_depth + 1;
         let entry = 48 * stride as u64;
@@ -390,7 +433,7 @@ impl GpuWhitted {
                 first: first as u32,
                 count: count as u32,
                 parts: accel.part_count,
-                pad1: 0,
+                transparent: scene.transparent as u32,
                 background: settings.background.to_array(),
                 max_depth: settings.max_depth,
                 shading: match settings.shading {

@@ -2,8 +2,10 @@
 // the parts and kd-tree walks of `parts.wgsl` and `walk.wgsl` (which the host puts before this
 // file): one invocation per
 // camera ray; emission, direct light from every punctual light through shadow rays, and the
-// Fresnel-weighted mirror and refraction rays to `max_depth`. WGSL has no recursion, so the rays
-// still to trace wait on a per-invocation stack with the weight their radiance gets.
+// Fresnel-weighted mirror and refraction rays to `max_depth`, with the material inputs of
+// WHITTED-materials.md (textures on every slot, normal maps, MASK cut-outs that no ray sees,
+// BLEND surfaces over what lies behind). WGSL has no recursion, so the rays still to trace wait
+// on a per-invocation stack with the weight their radiance gets.
 
 struct Ray {
     origin: vec3<f32>,
@@ -17,7 +19,8 @@ struct Frame {
     count: u32,
     // Rows of the part table.
     parts: u32,
-    pad1: u32,
+    // 1 where a material is MASK or BLEND: hits test their coverage, shadow rays walk on.
+    transparent: u32,
     background: vec3<f32>,
     max_depth: u32,
     // 0: Cook-Torrance (the glTF BRDF), 1: Phong.
@@ -28,30 +31,47 @@ struct Frame {
     pad0: u32,
 }
 
-// A vertex: position, shading normal (zero: shade flat), two texture coordinate sets, colour.
+// A vertex: position, shading normal (zero: shade flat), two texture coordinate sets, colour
+// with alpha, tangent with the bitangent's sign (zero: not normal-mapped).
 struct Vertex {
     p: vec3<f32>,
     u0: f32,
     n: vec3<f32>,
     v0: f32,
-    color: vec3<f32>,
+    color: vec4<f32>,
     u1: f32,
     v1: f32,
     pad0: f32,
     pad1: f32,
-    pad2: f32,
+    tangent: vec4<f32>,
+}
+
+// A texture slot: index into `textures` (or -1), its texture coordinate set, and the rows of its
+// KHR_texture_transform (the identity without one).
+struct Slot {
+    u: vec3<f32>,
+    texture: i32,
+    v: vec3<f32>,
+    tex_coord: u32,
 }
 
 struct Material {
-    base_color: vec3<f32>,
-    metallic: f32,
+    base_color: vec4<f32>,
     emissive: vec3<f32>,
+    metallic: f32,
     roughness: f32,
     transmission: f32,
     ior: f32,
-    // Index into `textures`, or -1; which texture coordinate set it reads.
-    texture: i32,
-    tex_coord: u32,
+    // 0 opaque, 1 mask, 2 blend.
+    alpha_mode: u32,
+    alpha_cutoff: f32,
+    normal_scale: f32,
+    pad0: f32,
+    pad1: f32,
+    base_color_slot: Slot,
+    metallic_roughness_slot: Slot,
+    normal_slot: Slot,
+    emissive_slot: Slot,
 }
 
 struct Light {
@@ -126,16 +146,17 @@ fn texel_at(i: u32) -> vec4<f32> {
 }
 
 var<private> shadow_rays: u32;
+var<private> secondary: u32;
 
 const PI: f32 = 3.14159265358979;
 // Shadow rays stop this fraction short of the light (integrator.rs `SHADOW_EPSILON`).
 const SHADOW_EPSILON: f32 = 1e-4;
 // No limit: the largest f32 (WGSL has no infinity literal).
 const FAR: f32 = 3.4028235e38;
-
-fn hit_anything(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> bool {
-    return trace(o, d, t_max, true, frame.parts).prim != NO_PRIM;
-}
+// integrator.rs `FACING_MIN`: the least dot(n, v) of a normal-mapped shading normal.
+const FACING_MIN: f32 = 0.01;
+// integrator.rs `MAX_CROSSINGS`: cut-outs and BLEND surfaces one ray passes at most.
+const MAX_CROSSINGS: u32 = 256u;
 
 // `offset_origin` of integrator.rs (Wächter and Binder, Ray Tracing Gems ch. 6): a few ulps of
 // the point's own coordinates along `n`, a fixed step near the origin.
@@ -183,6 +204,121 @@ fn sample_texture(t: Texture, uv: vec2<f32>) -> vec4<f32> {
     let top = mix(texel(t, xi, yi), texel(t, xi + 1, yi), fx);
     let bottom = mix(texel(t, xi, yi + 1), texel(t, xi + 1, yi + 1), fx);
     return mix(top, bottom, fy);
+}
+
+// A hit's triangle: its vertices, barycentrics (b0, b1, b2) and material.
+struct Corner {
+    a: Vertex,
+    b: Vertex,
+    c: Vertex,
+    w: vec3<f32>,
+    material: u32,
+}
+
+fn corner_of(hit: HitOut) -> Corner {
+    let tri = face_at(hit.prim);
+    let w = vec3<f32>(1.0 - hit.b1 - hit.b2, hit.b1, hit.b2);
+    return Corner(vertex_at(tri.x), vertex_at(tri.y), vertex_at(tri.z), w, tri.w);
+}
+
+// `TextureRef::uv`: the slot's texture coordinate set at the hit, through its transform.
+fn slot_uv(s: Slot, k: Corner) -> vec2<f32> {
+    var uv = vec2<f32>(k.a.u0, k.a.v0) * k.w.x + vec2<f32>(k.b.u0, k.b.v0) * k.w.y + vec2<f32>(k.c.u0, k.c.v0) * k.w.z;
+    if s.tex_coord == 1u {
+        uv = vec2<f32>(k.a.u1, k.a.v1) * k.w.x + vec2<f32>(k.b.u1, k.b.v1) * k.w.y + vec2<f32>(k.c.u1, k.c.v1) * k.w.z;
+    }
+    let p = vec3<f32>(uv, 1.0);
+    return vec2<f32>(dot(s.u, p), dot(s.v, p));
+}
+
+// A slot's texel at the hit; 1 in every channel without a texture.
+fn slot_texel(s: Slot, k: Corner) -> vec4<f32> {
+    if s.texture < 0 {
+        return vec4<f32>(1.0);
+    }
+    return sample_texture(textures[s.texture], slot_uv(s, k));
+}
+
+// `Integrator::base_color`: base colour (RGB) and coverage (A), factor x texture x COLOR_0.
+fn base_color(m: Material, k: Corner) -> vec4<f32> {
+    let color = k.a.color * k.w.x + k.b.color * k.w.y + k.c.color * k.w.z;
+    return m.base_color * color * slot_texel(m.base_color_slot, k);
+}
+
+fn barycentric_point(k: Corner) -> vec3<f32> {
+    return k.a.p * k.w.x + k.b.p * k.w.y + k.c.p * k.w.z;
+}
+
+// The far side of a surface crossed along `d`: `offset_origin` along the geometric normal.
+fn beyond(k: Corner, d: vec3<f32>) -> vec3<f32> {
+    let ng = normalize_or_zero(cross(k.b.p - k.a.p, k.c.p - k.a.p));
+    return offset_origin(barycentric_point(k), select(-ng, ng, dot(ng, d) >= 0.0));
+}
+
+// `Integrator::pass_cut_outs`: the closest hit that exists, passing MASK hits whose coverage is
+// below the cutoff; `t` from the first origin.
+fn trace_visible(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> HitOut {
+    var origin = o;
+    var travelled = 0.0;
+    for (var i = 0u; i < MAX_CROSSINGS; i++) {
+        var hit = trace(origin, d, t_max - travelled, false, frame.parts);
+        if hit.prim == NO_PRIM || frame.transparent == 0u {
+            hit.t += travelled;
+            return hit;
+        }
+        let k = corner_of(hit);
+        let m = materials[k.material];
+        if m.alpha_mode != 1u || base_color(m, k).w >= m.alpha_cutoff {
+            hit.t += travelled;
+            return hit;
+        }
+        origin = beyond(k, d);
+        travelled += hit.t;
+        secondary += 1u;
+    }
+    var none: HitOut;
+    none.prim = NO_PRIM;
+    return none;
+}
+
+// `Integrator::visibility`: the fraction of a shadow ray that reaches the light. Opaque scenes
+// ask for any hit; otherwise cut-outs are passed and each BLEND surface lets 1 - a through.
+fn visibility(o: vec3<f32>, d: vec3<f32>, t_max: f32, light: Light) -> f32 {
+    let any = frame.transparent == 0u;
+    var origin = o;
+    var dir = d;
+    var seen = 1.0;
+    for (var i = 0u; i < MAX_CROSSINGS; i++) {
+        shadow_rays += 1u;
+        let hit = trace(origin, dir, t_max, any, frame.parts);
+        if hit.prim == NO_PRIM {
+            return seen;
+        }
+        if any {
+            return 0.0;
+        }
+        let k = corner_of(hit);
+        let m = materials[k.material];
+        if m.alpha_mode == 0u {
+            return 0.0;
+        }
+        let a = base_color(m, k).w;
+        if m.alpha_mode == 1u {
+            if a >= m.alpha_cutoff {
+                return 0.0;
+            }
+        } else {
+            seen *= 1.0 - a;
+            if seen <= 0.0 {
+                return 0.0;
+            }
+        }
+        origin = beyond(k, dir);
+        if light.kind != 0u {
+            dir = light.position - origin;
+        }
+    }
+    return 0.0;
 }
 
 fn pow5(x: f32) -> f32 {
@@ -251,7 +387,7 @@ fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
 }
 
 // Direct light at a lit surface point from every light, each behind its shadow ray.
-fn direct_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, v: vec3<f32>, base: vec3<f32>, m: Material) -> vec3<f32> {
+fn direct_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, v: vec3<f32>, base: vec3<f32>, metallic: f32, roughness: f32) -> vec3<f32> {
     var sum = vec3<f32>(0.0);
     let origin = offset_origin(p, ng);
     for (var i = 0u; i < frame.lights; i++) {
@@ -290,11 +426,12 @@ fn direct_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, v: vec3<f32>, base: v
         if n_l <= 0.0 || dot(ng, l) <= 0.0 || all(irradiance == vec3<f32>(0.0)) {
             continue;
         }
-        shadow_rays += 1u;
-        if hit_anything(origin, shadow_dir, t_max) {
+        let seen = visibility(origin, shadow_dir, t_max, light);
+        if seen == 0.0 {
             continue;
         }
-        sum += brdf(base, m.metallic, m.roughness, n, l, v) * n_l * irradiance;
+        let term = brdf(base, metallic, roughness, n, l, v) * n_l * irradiance;
+        sum += select(seen * term, term, seen == 1.0);
     }
     return sum;
 }
@@ -322,56 +459,79 @@ fn main(
     var size = 1u;
     pending[first_slot] = Pending(camera.origin, camera.t_max, camera.dir, 1u, vec3<f32>(1.0));
     var total = vec3<f32>(0.0);
-    var secondary = 0u;
     while size > 0u {
         size -= 1u;
         let ray = pending[first_slot + size];
         secondary += select(0u, 1u, ray.depth > 1u);
-        let hit = trace(ray.origin, ray.dir, ray.t_max, false, frame.parts);
+        let hit = trace_visible(ray.origin, ray.dir, ray.t_max);
         if hit.prim == NO_PRIM {
             total += ray.weight * frame.background;
             continue;
         }
-        // The hit's surface (`shading_point`): the barycentric point, geometric and
-        // interpolated normals turned to the viewer, texture coordinates and vertex colour.
-        let tri = face_at(hit.prim);
-        let a = vertex_at(tri.x);
-        let b = vertex_at(tri.y);
-        let c = vertex_at(tri.z);
-        let b1 = hit.b1;
-        let b2 = hit.b2;
-        let b0 = 1.0 - b1 - b2;
-        let p = a.p * b0 + b.p * b1 + c.p * b2;
-        let ng0 = normalize_or_zero(cross(b.p - a.p, c.p - a.p));
-        let interp = a.n * b0 + b.n * b1 + c.n * b2;
+        // The hit's surface (`shading_point`, `surface`): the barycentric point, geometric and
+        // interpolated normals turned to the viewer, and the material's values there.
+        let k = corner_of(hit);
+        let p = barycentric_point(k);
+        let ng0 = normalize_or_zero(cross(k.b.p - k.a.p, k.c.p - k.a.p));
+        let interp = k.a.n * k.w.x + k.b.n * k.w.y + k.c.n * k.w.z;
         var ns = ng0;
         if dot(interp, interp) > 1e-12 {
             ns = normalize(interp);
         }
         let front = dot(ng0, -ray.dir) > 0.0;
         let side = select(-1.0, 1.0, front);
-        let n = ns * side;
         let ng = ng0 * side;
-        let m = materials[tri.w];
-        var base = m.base_color * (a.color * b0 + b.color * b1 + c.color * b2);
-        if m.texture >= 0 {
-            var uv = vec2<f32>(a.u0, a.v0) * b0 + vec2<f32>(b.u0, b.v0) * b1 + vec2<f32>(c.u0, c.v0) * b2;
-            if m.tex_coord == 1u {
-                uv = vec2<f32>(a.u1, a.v1) * b0 + vec2<f32>(b.u1, b.v1) * b1 + vec2<f32>(c.u1, c.v1) * b2;
-            }
-            base *= sample_texture(textures[m.texture], uv).xyz;
-        }
         let v = -ray.dir;
+        let m = materials[k.material];
+        let base_alpha = base_color(m, k);
+        let base = base_alpha.xyz;
+        let mr = slot_texel(m.metallic_roughness_slot, k);
+        let roughness = m.roughness * mr.y;
+        let metallic = m.metallic * mr.z;
+        let emissive = m.emissive * slot_texel(m.emissive_slot, k).xyz;
+        var n = ns * side;
+        // `map_normal`: the normal map's normal in the interpolated tangent frame, turned to
+        // the viewer and clamped to face it.
+        let mapped = m.normal_slot.texture >= 0;
+        if mapped {
+            let interp_t = k.a.tangent.xyz * k.w.x + k.b.tangent.xyz * k.w.y + k.c.tangent.xyz * k.w.z;
+            let t = normalize_or_zero(interp_t - ns * dot(ns, interp_t));
+            var np = ns;
+            if any(t != vec3<f32>(0.0)) {
+                let bitangent = cross(ns, t) * k.a.tangent.w;
+                let c = slot_texel(m.normal_slot, k);
+                let s = m.normal_scale;
+                let local = vec3<f32>((2.0 * c.x - 1.0) * s, (2.0 * c.y - 1.0) * s, 2.0 * c.z - 1.0);
+                let q = normalize_or_zero(local.x * t + local.y * bitangent + local.z * ns);
+                np = select(ns, q, any(q != vec3<f32>(0.0)));
+            }
+            n = np * side;
+            let facing = dot(n, v);
+            if facing < FACING_MIN {
+                n = normalize(n + (FACING_MIN - facing) * v);
+            }
+        }
         let glass = m.transmission >= 0.5;
-        var here = m.emissive;
+        let blend = m.alpha_mode == 2u;
+        let alpha = select(1.0, base_alpha.w, blend);
+        var here = emissive;
         if !glass && dot(n, v) > 0.0 {
-            here += direct_light(p, n, ng, v, base, m);
+            here += direct_light(p, n, ng, v, base, metallic, roughness);
+        }
+        if blend {
+            here *= alpha;
         }
         total += ray.weight * here;
         if ray.depth >= frame.max_depth {
             continue;
         }
-        // The mirror ray and, for glass, the refraction ray (`bounces`).
+        // What lies behind a BLEND surface, as a ray of the next depth (`bounces`).
+        if blend {
+            pending[first_slot + size] = Pending(beyond(k, ray.dir), FAR, ray.dir, ray.depth + 1u, ray.weight * (1.0 - alpha));
+            size += 1u;
+        }
+        // The mirror ray and, for glass, the refraction ray (`specular_bounces`); a normal-mapped
+        // hit drops a mirror ray below its geometric surface and a refracted ray above it.
         let cos_i = clamp(dot(n, v), 0.0, 1.0);
         let reflect_dir = normalize(ray.dir + 2.0 * cos_i * n);
         var reflect_weight = vec3<f32>(0.0);
@@ -385,18 +545,23 @@ fn main(
                 let rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
                 f = 0.5 * (rs * rs + rp * rp);
                 let dir = normalize(eta * ray.dir + (eta * cos_i - cos_t) * n);
-                let o = offset_origin(p, select(-ng, ng, dot(ng, dir) >= 0.0));
-                pending[first_slot + size] = Pending(o, FAR, dir, ray.depth + 1u, ray.weight * (1.0 - f) * base);
-                size += 1u;
+                if !(mapped && dot(dir, ng) >= 0.0) {
+                    let o = offset_origin(p, select(-ng, ng, dot(ng, dir) >= 0.0));
+                    pending[first_slot + size] = Pending(o, FAR, dir, ray.depth + 1u, ray.weight * (1.0 - f) * base);
+                    size += 1u;
+                }
             }
             reflect_weight = vec3<f32>(f);
-        } else if m.roughness == 0.0 {
-            reflect_weight = (1.0 - m.metallic) * schlick(vec3<f32>(0.04), cos_i) + m.metallic * schlick(base, cos_i);
+        } else if roughness == 0.0 {
+            reflect_weight = (1.0 - metallic) * schlick(vec3<f32>(0.04), cos_i) + metallic * schlick(base, cos_i);
         } else {
             continue;
         }
+        if mapped && dot(reflect_dir, ng) <= 0.0 {
+            continue;
+        }
         let o = offset_origin(p, select(-ng, ng, dot(ng, reflect_dir) >= 0.0));
-        pending[first_slot + size] = Pending(o, FAR, reflect_dir, ray.depth + 1u, ray.weight * reflect_weight);
+        pending[first_slot + size] = Pending(o, FAR, reflect_dir, ray.depth + 1u, ray.weight * alpha * reflect_weight);
         size += 1u;
     }
     radiance[index] = vec4<f32>(total, 1.0);

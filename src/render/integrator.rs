@@ -4,12 +4,13 @@
 //! with the material inputs of WHITTED-materials.md: textures on every slot, normal maps, and
 //! alpha coverage (MASK hits that do not exist for any ray, BLEND surfaces over what lies behind).
 
-use super::shading::{self, ShadingModel, SurfacePoint, brdf, dielectric_fresnel, schlick};
+use super::shading::{self, ShadingModel, brdf, dielectric_fresnel, schlick};
+use super::surface::Surface;
 use crate::accel::{Hit, Intersect, LANES, Ray};
 use crate::scene::light::{Light, LightKind};
-use crate::scene::material::{AlphaMode, Material, NormalMap, Texture, TextureRef};
+use crate::scene::material::{AlphaMode, Material, Texture};
 use crate::scene::pose::Geometry;
-use glam::{Vec2, Vec3, Vec4};
+use glam::Vec3;
 use smallvec::SmallVec;
 use std::cell::Cell;
 
@@ -63,7 +64,7 @@ pub struct Integrator<'a, A: Intersect> {
     pub settings: TraceSettings,
     /// Whether any material is MASK or BLEND: only then do hits need their coverage tested and
     /// shadow rays their crossings walked, so opaque scenes pay nothing for alpha.
-    transparent: bool,
+    pub(super) transparent: bool,
 }
 
 impl<'a, A: Intersect> Integrator<'a, A> {
@@ -103,45 +104,6 @@ pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
 /// Shadow rays stop this fraction short of the light so a light sitting on a surface is not
 /// shadowed by that surface.
 const SHADOW_EPSILON: f32 = 1e-4;
-
-/// The least `dot(n, v)` a normal-mapped shading normal keeps (WHITTED-materials.md section 3,
-/// the facing clamp): bumps tilted away from the viewer still get light and a mirror direction.
-const FACING_MIN: f32 = 0.01;
-
-/// Geometry of a hit, with normals flipped to the side the ray came from.
-struct Shading {
-    p: Vec3,
-    /// Shading normal on the viewer's side.
-    n: Vec3,
-    /// Geometric normal on the viewer's side.
-    ng: Vec3,
-    /// The ray arrived on the front (counter-clockwise) face.
-    front: bool,
-    uv: [Vec2; 2],
-    /// COLOR_0 (RGB tint and alpha coverage).
-    color: Vec4,
-    material: u32,
-    /// The triangle's vertices and the hit's barycentrics (b0, b1, b2), for the tangents.
-    vertices: [usize; 3],
-    barycentric: Vec3,
-}
-
-/// A hit's surface, as shading sees it.
-struct Surface<'m> {
-    sh: Shading,
-    mat: &'m Material,
-    point: SurfacePoint,
-    /// Emitted radiance (factor, texture and strength).
-    emissive: Vec3,
-    /// Coverage of a BLEND surface (1 for every other).
-    alpha: f32,
-    /// Direction to the viewer.
-    v: Vec3,
-    glass: bool,
-    /// The shading normal comes from a normal map: rays it would send below the surface are
-    /// dropped (WHITTED-materials.md section 3).
-    mapped: bool,
-}
 
 /// A light that reaches a hit unless its shadow ray is blocked.
 struct LightQuery {
@@ -292,158 +254,6 @@ impl<A: Intersect> Integrator<'_, A> {
         self.shade(rays, &hits[..n], &[(0, 0); LANES], depth, None, counts, out);
     }
 
-    /// MASK hits whose coverage is below the cutoff do not exist for any ray: each such lane
-    /// goes on from the far side of the hit, same direction, for the rest of its range, until
-    /// it finds a hit that exists or nothing (WHITTED-materials.md section 4). The hit's `t`
-    /// stays measured from the first origin.
-    fn pass_cut_outs(
-        &self,
-        rays: &[Ray],
-        t_max: &[f32],
-        hits: &mut [Option<Hit>],
-        counts: &Cell<RayCounts>,
-    ) {
-        if !self.transparent {
-            return;
-        }
-        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-        current[..rays.len()].copy_from_slice(rays);
-        let mut travelled = [0.0f32; LANES];
-        loop {
-            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-            let mut limits = [0.0; LANES];
-            let mut lanes = [0usize; LANES];
-            let mut k = 0;
-            for (i, hit) in hits.iter().enumerate() {
-                let Some(h) = hit else { continue };
-                let ray = Ray::new(current[i].origin, current[i].dir);
-                let local = Hit {
-                    t: h.t - travelled[i],
-                    ..*h
-                };
-                if !self.cut_out(&ray, &local) {
-                    continue;
-                }
-                let sh = self.shading_point(&ray, &local);
-                let side = if sh.ng.dot(ray.dir) >= 0.0 {
-                    sh.ng
-                } else {
-                    -sh.ng
-                };
-                current[i] = Ray::new(offset_origin(sh.p, side), ray.dir);
-                travelled[i] = h.t;
-                (next[k], limits[k], lanes[k]) = (current[i], t_max[i] - h.t, i);
-                k += 1;
-            }
-            if k == 0 {
-                return;
-            }
-            bump(counts, |c| c.secondary += k as u64);
-            let mut found = [None; LANES];
-            self.scene
-                .accel
-                .closest_hits(&next[..k], &limits[..k], &mut found[..k]);
-            for (&i, f) in lanes[..k].iter().zip(found) {
-                hits[i] = f.map(|h| Hit {
-                    t: h.t + travelled[i],
-                    ..h
-                });
-            }
-        }
-    }
-
-    /// Whether a hit is on a MASK surface where its coverage is below the cutoff.
-    fn cut_out(&self, ray: &Ray, hit: &Hit) -> bool {
-        let material = self.scene.geometry.triangle_materials[hit.prim as usize];
-        let mat = &self.scene.materials[material as usize];
-        match mat.alpha {
-            AlphaMode::Mask { cutoff } => {
-                self.base_color(mat, &self.shading_point(ray, hit)).w < cutoff
-            }
-            _ => false,
-        }
-    }
-
-    /// The fraction of a light's shadow rays that arrives: 0 behind an opaque, transmissive or
-    /// uncut MASK surface; cut-outs are passed; each BLEND surface crossed lets `1 - a` through
-    /// (untinted, WHITTED-materials.md section 4). Without MASK or BLEND materials it is the
-    /// any-hit answer.
-    fn visibility(
-        &self,
-        light: &Light,
-        rays: &[Ray],
-        t_max: &[f32],
-        out: &mut [f32],
-        counts: &Cell<RayCounts>,
-    ) {
-        let n = rays.len();
-        if !self.transparent {
-            let mut blocked = [false; LANES];
-            self.scene.accel.any_hits(rays, t_max, &mut blocked[..n]);
-            for (o, b) in out.iter_mut().zip(blocked) {
-                *o = if b { 0.0 } else { 1.0 };
-            }
-            return;
-        }
-        out.fill(1.0);
-        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-        let mut limits = [0.0; LANES];
-        let mut lanes = [0usize; LANES];
-        current[..n].copy_from_slice(rays);
-        limits[..n].copy_from_slice(t_max);
-        for (i, l) in lanes[..n].iter_mut().enumerate() {
-            *l = i;
-        }
-        let mut k = n;
-        let mut first = true;
-        while k > 0 {
-            if !first {
-                bump(counts, |c| c.shadow += k as u64);
-            }
-            first = false;
-            let mut found = [None; LANES];
-            self.scene
-                .accel
-                .closest_hits(&current[..k], &limits[..k], &mut found[..k]);
-            let mut still = 0;
-            for j in 0..k {
-                let (i, ray) = (lanes[j], current[j]);
-                let Some(hit) = found[j] else { continue };
-                let material = self.scene.geometry.triangle_materials[hit.prim as usize];
-                let mat = &self.scene.materials[material as usize];
-                let sh = self.shading_point(&ray, &hit);
-                let passes = match mat.alpha {
-                    AlphaMode::Mask { cutoff } => self.base_color(mat, &sh).w < cutoff,
-                    AlphaMode::Blend => {
-                        out[i] *= 1.0 - self.base_color(mat, &sh).w;
-                        out[i] > 0.0
-                    }
-                    AlphaMode::Opaque => false,
-                };
-                if !passes {
-                    out[i] = 0.0;
-                    continue;
-                }
-                // On from the far side of the crossing: to the light's position (spawn_ray_to)
-                // or, for a directional light, along the same direction without end.
-                let side = if sh.ng.dot(ray.dir) >= 0.0 {
-                    sh.ng
-                } else {
-                    -sh.ng
-                };
-                let origin = offset_origin(sh.p, side);
-                let dir = match light.kind {
-                    LightKind::Directional => ray.dir,
-                    LightKind::Point | LightKind::Spot { .. } => light.position - origin,
-                };
-                (current[still], limits[still], lanes[still]) =
-                    (Ray::new(origin, dir), limits[j], i);
-                still += 1;
-            }
-            k = still;
-        }
-    }
-
     /// Radiance of each lane from its hit (`None`: the background), recursing below
     /// `max_depth`. `known[i]` holds lane i's shadow answers already known (lit, shadowed).
     #[allow(clippy::too_many_arguments)]
@@ -461,7 +271,7 @@ impl<A: Intersect> Integrator<'_, A> {
             hits.get(i)
                 .copied()
                 .flatten()
-                .map(|h| self.surface(&rays[i], &h))
+                .map(|h| self.scene.surface(&rays[i], &h))
         });
         let (direct, shadows) = self.direct_light(&surfaces, known, counts);
         if let Some(record) = record {
@@ -680,88 +490,6 @@ impl<A: Intersect> Integrator<'_, A> {
         }
     }
 
-    /// The material's values at a hit (WHITTED-materials.md section 1): base colour, roughness
-    /// and metalness, emission and coverage from factors, textures and COLOR_0; the shading
-    /// normal from the normal map.
-    fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'_> {
-        let mut sh = self.shading_point(ray, hit);
-        let mat = &self.scene.materials[sh.material as usize];
-        let v = -ray.dir;
-        let base = self.base_color(mat, &sh);
-        let (mut metallic, mut roughness) = (mat.metallic, mat.roughness);
-        if let Some(t) = self.texel(&mat.metallic_roughness_texture, &sh) {
-            roughness *= t.y;
-            metallic *= t.z;
-        }
-        let mut emissive = mat.emissive;
-        if let Some(t) = self.texel(&mat.emissive_texture, &sh) {
-            emissive *= t.truncate();
-        }
-        if let Some(map) = &mat.normal_texture {
-            self.map_normal(map, &mut sh, v);
-        }
-        Surface {
-            sh,
-            mat,
-            point: SurfacePoint {
-                base_color: base.truncate(),
-                metallic,
-                roughness,
-            },
-            emissive,
-            alpha: if mat.alpha == AlphaMode::Blend {
-                base.w
-            } else {
-                1.0
-            },
-            v,
-            glass: mat.transmission >= 0.5,
-            mapped: mat.normal_texture.is_some(),
-        }
-    }
-
-    /// A texture slot's value at a shading point (`None`: the material has no texture there).
-    fn texel(&self, slot: &Option<TextureRef>, sh: &Shading) -> Option<Vec4> {
-        let slot = slot.as_ref()?;
-        Some(self.scene.textures[slot.texture].sample(slot.uv(&sh.uv)))
-    }
-
-    /// The normal map's normal in the interpolated tangent frame (WHITTED-materials.md section
-    /// 2), turned to the viewer's side and clamped to face it (section 3). A vertex without a
-    /// tangent (a degenerate UV triangle) keeps the interpolated normal.
-    fn map_normal(&self, map: &NormalMap, sh: &mut Shading, v: Vec3) {
-        let side = if sh.front { 1.0 } else { -1.0 };
-        let n = sh.n * side;
-        let g = self.scene.geometry;
-        let [i0, i1, i2] = sh.vertices;
-        let b = sh.barycentric;
-        let (Some(t0), Some(t1), Some(t2)) =
-            (g.tangents.get(i0), g.tangents.get(i1), g.tangents.get(i2))
-        else {
-            return;
-        };
-        let interp = t0.truncate() * b.x + t1.truncate() * b.y + t2.truncate() * b.z;
-        let t = (interp - n * n.dot(interp)).normalize_or_zero();
-        let mapped = if t == Vec3::ZERO {
-            n
-        } else {
-            let bitangent = n.cross(t) * t0.w;
-            let c = self.scene.textures[map.texture.texture].sample(map.texture.uv(&sh.uv));
-            let local = Vec3::new(
-                (2.0 * c.x - 1.0) * map.scale,
-                (2.0 * c.y - 1.0) * map.scale,
-                2.0 * c.z - 1.0,
-            );
-            (local.x * t + local.y * bitangent + local.z * n).normalize_or(n)
-        };
-        let mut shading = mapped * side;
-        let facing = shading.dot(v);
-        if facing < FACING_MIN {
-            shading = (shading + (FACING_MIN - facing) * v).normalize();
-        }
-        sh.n = shading;
-    }
-
     /// What an unblocked light adds at a surface.
     fn direct_term(&self, s: &Surface, q: &LightQuery) -> Vec3 {
         brdf(self.settings.shading, &s.point, s.sh.n, q.l, s.v) * q.n_l * q.irradiance
@@ -814,54 +542,10 @@ impl<A: Intersect> Integrator<'_, A> {
             })
         })
     }
-
-    fn shading_point(&self, ray: &Ray, hit: &Hit) -> Shading {
-        let g = self.scene.geometry;
-        let [i0, i1, i2] = g.triangles[hit.prim as usize].map(|i| i as usize);
-        let (b1, b2) = (hit.b1, hit.b2);
-        let b0 = 1.0 - b1 - b2;
-        let (p0, p1, p2) = (g.positions[i0], g.positions[i1], g.positions[i2]);
-        // The barycentric point is more accurate than origin + t * dir, which the offset relies on.
-        let p = p0 * b0 + p1 * b1 + p2 * b2;
-        let ng = (p1 - p0).cross(p2 - p0).normalize_or_zero();
-        let interp = g.normals[i0] * b0 + g.normals[i1] * b1 + g.normals[i2] * b2;
-        let ns = if interp.length_squared() > 1e-12 {
-            interp.normalize()
-        } else {
-            ng
-        };
-        let front = ng.dot(-ray.dir) > 0.0;
-        let s = if front { 1.0 } else { -1.0 };
-        let uv = [0, 1].map(|k| {
-            let t = &g.tex_coords[k];
-            t[i0] * b0 + t[i1] * b1 + t[i2] * b2
-        });
-        let color = g.colors[i0] * b0 + g.colors[i1] * b1 + g.colors[i2] * b2;
-        Shading {
-            p,
-            n: ns * s,
-            ng: ng * s,
-            front,
-            uv,
-            color,
-            material: g.triangle_materials[hit.prim as usize],
-            vertices: [i0, i1, i2],
-            barycentric: Vec3::new(b0, b1, b2),
-        }
-    }
-
-    /// Base colour (RGB) and coverage (A): factor x texture x COLOR_0.
-    fn base_color(&self, mat: &Material, sh: &Shading) -> Vec4 {
-        let mut c = mat.base_color * sh.color;
-        if let Some(t) = self.texel(&mat.base_color_texture, sh) {
-            c *= t;
-        }
-        c
-    }
 }
 
 #[inline]
-fn bump(counts: &Cell<RayCounts>, f: impl FnOnce(&mut RayCounts)) {
+pub(super) fn bump(counts: &Cell<RayCounts>, f: impl FnOnce(&mut RayCounts)) {
     let mut c = counts.get();
     f(&mut c);
     counts.set(c);

@@ -3,6 +3,7 @@
 //! the depth probe with the stereo comfort rules it feeds.
 //! It sees geometry only through `accel::Intersect` and never knows an output file format.
 
+mod alpha;
 mod backend;
 mod camera;
 mod comfort;
@@ -12,6 +13,7 @@ mod integrator;
 mod reproject;
 mod sampling;
 mod shading;
+mod surface;
 mod view;
 
 pub use backend::{Backend, NOT_BUILT};

@@ -404,7 +404,7 @@ impl Loader<'_> {
                 format!("must be a finite number >= 0, got {strength}"),
             ));
         }
-        let alpha = match m.alpha_mode() {
+        let mut alpha = match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
             gltf::material::AlphaMode::Mask => {
@@ -419,6 +419,14 @@ impl Loader<'_> {
                 AlphaMode::Mask { cutoff }
             }
         };
+        let transmission = transmission.map_or(0.0, |t| t.transmission_factor());
+        // A smooth dielectric already passes light by refraction; coverage on top of it is
+        // outside the convention (WHITTED-materials.md section 1), and a hit would spawn
+        // three rays.
+        if alpha != AlphaMode::Opaque && transmission >= 0.5 {
+            notes.ignored.push("alphaMode on transmissive materials");
+            alpha = AlphaMode::Opaque;
+        }
         Ok(Material {
             name: m.name().map(str::to_owned),
             base_color: Vec4::from(bc),
@@ -430,7 +438,7 @@ impl Loader<'_> {
             emissive: Vec3::from(m.emissive_factor()) * strength,
             emissive_texture,
             alpha,
-            transmission: transmission.map_or(0.0, |t| t.transmission_factor()),
+            transmission,
             ior: m.ior().unwrap_or(1.5),
             double_sided: m.double_sided(),
         })
@@ -474,7 +482,7 @@ pub(super) fn load_materials(
         notes.ignored.sort_unstable();
         notes.ignored.dedup();
         warnings.push(format!(
-            "{}: material textures ignored (factors only): {}",
+            "{}: material inputs ignored: {}",
             file.display(),
             notes.ignored.join(", ")
         ));

@@ -1,0 +1,162 @@
+//! Alpha coverage in the integrator's rays (WHITTED-materials.md section 4): MASK hits below
+//! the cutoff do not exist for any ray, and shadow rays pass cut-outs and let `1 - a` through
+//! each BLEND surface. Scenes without MASK or BLEND materials skip all of it.
+
+use super::integrator::{Integrator, RayCounts, bump, offset_origin};
+use crate::accel::{Hit, Intersect, LANES, Ray};
+use crate::scene::light::{Light, LightKind};
+use crate::scene::material::AlphaMode;
+use glam::Vec3;
+use std::cell::Cell;
+
+/// Cut-outs and BLEND surfaces one ray passes at most: a guard against a ray that the offset
+/// fails to move past a surface, far above the layers of foliage or fences real scenes stack.
+const MAX_CROSSINGS: usize = 256;
+
+impl<A: Intersect> Integrator<'_, A> {
+    /// MASK hits whose coverage is below the cutoff do not exist for any ray: each such lane
+    /// goes on from the far side of the hit, same direction, for the rest of its range, until
+    /// it finds a hit that exists or nothing (WHITTED-materials.md section 4). The hit's `t`
+    /// stays measured from the first origin.
+    pub(super) fn pass_cut_outs(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        hits: &mut [Option<Hit>],
+        counts: &Cell<RayCounts>,
+    ) {
+        if !self.transparent {
+            return;
+        }
+        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        current[..rays.len()].copy_from_slice(rays);
+        let mut travelled = [0.0f32; LANES];
+        for crossing in 0..=MAX_CROSSINGS {
+            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let mut limits = [0.0; LANES];
+            let mut lanes = [0usize; LANES];
+            let mut k = 0;
+            for (i, hit) in hits.iter_mut().enumerate() {
+                let Some(h) = *hit else { continue };
+                let ray = current[i];
+                if !self.scene.cut_out(&ray, &h) {
+                    continue;
+                }
+                if crossing == MAX_CROSSINGS {
+                    *hit = None;
+                    continue;
+                }
+                let sh = self.scene.shading_point(&ray, &h);
+                let side = if sh.ng.dot(ray.dir) >= 0.0 {
+                    sh.ng
+                } else {
+                    -sh.ng
+                };
+                current[i] = Ray::new(offset_origin(sh.p, side), ray.dir);
+                travelled[i] = h.t;
+                (next[k], limits[k], lanes[k]) = (current[i], t_max[i] - h.t, i);
+                k += 1;
+            }
+            if k == 0 {
+                return;
+            }
+            bump(counts, |c| c.secondary += k as u64);
+            let mut found = [None; LANES];
+            self.scene
+                .accel
+                .closest_hits(&next[..k], &limits[..k], &mut found[..k]);
+            for (&i, f) in lanes[..k].iter().zip(found) {
+                hits[i] = f.map(|h| Hit {
+                    t: h.t + travelled[i],
+                    ..h
+                });
+            }
+        }
+    }
+
+    /// The fraction of a light's shadow rays that arrives: 0 behind an opaque, transmissive or
+    /// uncut MASK surface; cut-outs are passed; each BLEND surface crossed lets `1 - a` through
+    /// (untinted, WHITTED-materials.md section 4). Without MASK or BLEND materials it is the
+    /// any-hit answer.
+    pub(super) fn visibility(
+        &self,
+        light: &Light,
+        rays: &[Ray],
+        t_max: &[f32],
+        out: &mut [f32],
+        counts: &Cell<RayCounts>,
+    ) {
+        let n = rays.len();
+        if !self.transparent {
+            let mut blocked = [false; LANES];
+            self.scene.accel.any_hits(rays, t_max, &mut blocked[..n]);
+            for (o, b) in out.iter_mut().zip(blocked) {
+                *o = if b { 0.0 } else { 1.0 };
+            }
+            return;
+        }
+        out.fill(1.0);
+        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        let mut limits = [0.0; LANES];
+        let mut lanes = [0usize; LANES];
+        current[..n].copy_from_slice(rays);
+        limits[..n].copy_from_slice(t_max);
+        for (i, l) in lanes[..n].iter_mut().enumerate() {
+            *l = i;
+        }
+        let mut k = n;
+        let mut first = true;
+        for _ in 0..MAX_CROSSINGS {
+            if k == 0 {
+                return;
+            }
+            if !first {
+                bump(counts, |c| c.shadow += k as u64);
+            }
+            first = false;
+            let mut found = [None; LANES];
+            self.scene
+                .accel
+                .closest_hits(&current[..k], &limits[..k], &mut found[..k]);
+            let mut still = 0;
+            for j in 0..k {
+                let (i, ray) = (lanes[j], current[j]);
+                let Some(hit) = found[j] else { continue };
+                let material = self.scene.geometry.triangle_materials[hit.prim as usize];
+                let mat = &self.scene.materials[material as usize];
+                let sh = self.scene.shading_point(&ray, &hit);
+                let passes = match mat.alpha {
+                    AlphaMode::Mask { cutoff } => self.scene.base_color(mat, &sh).w < cutoff,
+                    AlphaMode::Blend => {
+                        out[i] *= 1.0 - self.scene.base_color(mat, &sh).w;
+                        out[i] > 0.0
+                    }
+                    AlphaMode::Opaque => false,
+                };
+                if !passes {
+                    out[i] = 0.0;
+                    continue;
+                }
+                // On from the far side of the crossing: to the light's position (spawn_ray_to)
+                // or, for a directional light, along the same direction without end.
+                let side = if sh.ng.dot(ray.dir) >= 0.0 {
+                    sh.ng
+                } else {
+                    -sh.ng
+                };
+                let origin = offset_origin(sh.p, side);
+                let dir = match light.kind {
+                    LightKind::Directional => ray.dir,
+                    LightKind::Point | LightKind::Spot { .. } => light.position - origin,
+                };
+                (current[still], limits[still], lanes[still]) =
+                    (Ray::new(origin, dir), limits[j], i);
+                still += 1;
+            }
+            k = still;
+        }
+        for &i in &lanes[..k] {
+            out[i] = 0.0;
+        }
+    }
+}
