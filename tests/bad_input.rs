@@ -1017,3 +1017,150 @@ fn skins_and_sparse_accessors_that_would_lose_vertices() {
         ],
     );
 }
+
+/// A one-pixel PNG as a `data:` URI, for materials that need a texture that decodes.
+fn png_uri() -> String {
+    let mut png = Vec::new();
+    image::RgbaImage::from_pixel(1, 1, image::Rgba([128, 128, 255, 255]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&png)
+    )
+}
+
+/// The triangle with TEXCOORD_0 (accessor 1) and a TANGENT whose w is `w` (accessor 2, unused
+/// unless `edit` names it), material 0 `material`, texture 0 a PNG that decodes.
+fn material_triangle(
+    material: serde_json::Value,
+    w: f32,
+    edit: impl FnOnce(&mut serde_json::Value),
+) -> String {
+    let uv = [0.0f32, 0.0, 1.0, 0.0, 0.5, 1.0];
+    let tangents = [1.0f32, 0.0, 0.0, w].repeat(3);
+    let extra: Vec<u8> = uv
+        .iter()
+        .chain(&tangents)
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let uri = png_uri();
+    triangle_with_bytes(&extra, |g| {
+        g["bufferViews"] = json!([
+            {"buffer": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+            {"buffer": 0, "byteOffset": 60, "byteLength": 48}
+        ]);
+        g["accessors"].as_array_mut().unwrap().extend([
+            json!({"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}),
+            json!({"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4"}),
+        ]);
+        g["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(1);
+        g["meshes"][0]["primitives"][0]["material"] = json!(0);
+        g["materials"] = json!([material]);
+        g["images"] = json!([{ "uri": uri }]);
+        g["textures"] = json!([{"source": 0}]);
+        edit(g);
+    })
+}
+
+/// Material inputs that cannot be rendered (WHITTED-materials.md's inputs) are refused with the
+/// object named, never a panic or NaN pixels.
+#[test]
+fn material_inputs_that_cannot_be_rendered() {
+    let normal = json!({"normalTexture": {"index": 0}});
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "image-without-source",
+            material_triangle(json!({}), 1.0, |g| {
+                g["images"] = json!([{"name": "nothing"}])
+            }),
+            "images[0]",
+        ),
+        (
+            "image-view-without-mime-type",
+            material_triangle(json!({}), 1.0, |g| g["images"] = json!([{"bufferView": 1}])),
+            "images[0].mimeType",
+        ),
+        (
+            "normal-map-without-texcoords",
+            material_triangle(normal.clone(), 1.0, |g| {
+                g["meshes"][0]["primitives"][0]["attributes"]
+                    .as_object_mut()
+                    .unwrap()
+                    .remove("TEXCOORD_0");
+            }),
+            "materials[0].normalTexture reads TEXCOORD_0",
+        ),
+        (
+            "tangent-handedness",
+            material_triangle(normal.clone(), 0.5, |g| {
+                g["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = json!(2);
+            }),
+            "attributes.TANGENT",
+        ),
+        (
+            "tangent-type",
+            material_triangle(normal.clone(), 1.0, |g| {
+                g["accessors"][2]["type"] = json!("VEC3");
+                g["accessors"][2]["count"] = json!(4);
+                g["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = json!(2);
+            }),
+            "TANGENT must be VEC4",
+        ),
+        (
+            "texture-transform",
+            material_triangle(
+                json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
+                    "extensions": {"KHR_texture_transform": {"offset": [1e39, 0.0]}}}}}),
+                1.0,
+                |g| g["extensionsUsed"] = json!(["KHR_texture_transform"]),
+            ),
+            "baseColorTexture.extensions.KHR_texture_transform",
+        ),
+        (
+            "alpha-cutoff",
+            material_triangle(
+                json!({"alphaMode": "MASK", "alphaCutoff": -0.5}),
+                1.0,
+                |_| {},
+            ),
+            "alphaCutoff",
+        ),
+        (
+            "emissive-strength",
+            material_triangle(
+                json!({"extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 1e39}}}),
+                1.0,
+                |_| {},
+            ),
+            "emissiveStrength",
+        ),
+    ];
+    for (name, scene, object) in cases {
+        let c = Case::new(&format!("material-{name}"));
+        c.file("s.gltf", scene);
+        let p = c.file("p.toml", pipeline("s.gltf", ""));
+        c.fails(&p, &["s.gltf", object]);
+    }
+    // The control: the same triangle, normal-mapped with good tangents, renders.
+    let c = Case::new("material-good");
+    c.file(
+        "s.gltf",
+        material_triangle(normal, 1.0, |g| {
+            g["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = json!(2);
+        }),
+    );
+    let p = c.file("p.toml", pipeline("s.gltf", ""));
+    let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+        .args(["render", "--quiet", "--out"])
+        .arg(c.dir.join("out"))
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

@@ -17,17 +17,18 @@ impl<A: Intersect> Integrator<'_, A> {
     /// MASK hits whose coverage is below the cutoff do not exist for any ray: each such lane
     /// goes on from the far side of the hit, same direction, for the rest of its range, until
     /// it finds a hit that exists or nothing (WHITTED-materials.md section 4). The hit's `t`
-    /// stays measured from the first origin.
+    /// stays measured from the first origin. Returns the lanes (bit i: lane i) that passed one.
     pub(super) fn pass_cut_outs(
         &self,
         rays: &[Ray],
         t_max: &[f32],
         hits: &mut [Option<Hit>],
         counts: &Cell<RayCounts>,
-    ) {
+    ) -> u32 {
         if !self.transparent {
-            return;
+            return 0;
         }
+        let mut passed = 0u32;
         let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
         current[..rays.len()].copy_from_slice(rays);
         let mut travelled = [0.0f32; LANES];
@@ -54,11 +55,12 @@ impl<A: Intersect> Integrator<'_, A> {
                 };
                 current[i] = Ray::new(offset_origin(sh.p, side), ray.dir);
                 travelled[i] = h.t;
+                passed |= 1 << i;
                 (next[k], limits[k], lanes[k]) = (current[i], t_max[i] - h.t, i);
                 k += 1;
             }
             if k == 0 {
-                return;
+                return passed;
             }
             bump(counts, |c| c.secondary += k as u64);
             let mut found = [None; LANES];
@@ -72,6 +74,7 @@ impl<A: Intersect> Integrator<'_, A> {
                 });
             }
         }
+        passed
     }
 
     /// The fraction of a light's shadow rays that arrives: 0 behind an opaque, transmissive or

@@ -5,11 +5,10 @@
 //! alpha coverage (MASK hits that do not exist for any ray, BLEND surfaces over what lies behind).
 
 use super::shading::{self, ShadingModel, brdf, dielectric_fresnel, schlick};
-use super::surface::Surface;
+use super::surface::{SceneView, Surface};
 use crate::accel::{Hit, Intersect, LANES, Ray};
-use crate::scene::light::{Light, LightKind};
-use crate::scene::material::{AlphaMode, Material, Texture};
-use crate::scene::pose::Geometry;
+use crate::scene::light::LightKind;
+use crate::scene::material::{AlphaMode, Material};
 use glam::Vec3;
 use smallvec::SmallVec;
 use std::cell::Cell;
@@ -48,15 +47,6 @@ impl RayCounts {
         self.reused_shadow += o.reused_shadow;
         self.reused_radiance += o.reused_radiance;
     }
-}
-
-/// What the integrator reads of a posed frame.
-pub struct SceneView<'a, A: Intersect> {
-    pub accel: &'a A,
-    pub geometry: &'a Geometry,
-    pub materials: &'a [Material],
-    pub textures: &'a [Texture],
-    pub lights: &'a [Light],
 }
 
 pub struct Integrator<'a, A: Intersect> {
@@ -134,6 +124,9 @@ pub struct PrimaryRecord {
     /// is emission and direct light alone (no mirror or glass ray), else negative: another
     /// view may take the radiance where its view direction differs by a small part of that.
     pub lobe: f32,
+    /// The camera ray passed a MASK cut-out on its way: what it found is behind a hole
+    /// another view may see through differently, so it is not offered for reuse.
+    pub through_cut_out: bool,
 }
 
 impl PrimaryRecord {
@@ -143,6 +136,7 @@ impl PrimaryRecord {
         lit: 0,
         shadowed: 0,
         lobe: -1.0,
+        through_cut_out: false,
     };
 }
 
@@ -230,12 +224,17 @@ impl<A: Intersect> Integrator<'_, A> {
             self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
         }
         // A known hit may be a cut-out too: the other view saw it through the same hole.
-        self.pass_cut_outs(rays, t_max, &mut hits[..n], counts);
+        let passed = self.pass_cut_outs(rays, t_max, &mut hits[..n], counts);
         let record = match &mut primary {
             Primary::Record(r) => Some(&mut r[..n]),
             _ => None,
         };
         self.shade(rays, &hits[..n], &known, 1, record, counts, out);
+        if let Primary::Record(r) = &mut primary {
+            for (i, r) in r[..n].iter_mut().enumerate() {
+                r.through_cut_out = passed & (1 << i) != 0;
+            }
+        }
     }
 
     fn trace(
@@ -291,6 +290,7 @@ impl<A: Intersect> Integrator<'_, A> {
                         }
                         _ => -1.0,
                     },
+                    through_cut_out: false,
                 };
             }
         }

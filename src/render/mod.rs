@@ -26,10 +26,9 @@ pub use depth::{DepthProbe, PROBE_COLUMNS, ProbeCamera, probe_grid};
 pub use frame::{
     EyeReuse, FilmParams, Rendered, TILE, ViewFilm, ViewRole, render_views, tile_count,
 };
-pub use integrator::{
-    Integrator, RECORDED_LIGHTS, RayCounts, SceneView, TraceSettings, offset_origin,
-};
+pub use integrator::{Integrator, RECORDED_LIGHTS, RayCounts, TraceSettings, offset_origin};
 pub use reproject::{Reprojection, SourceSample};
 pub use sampling::pixel_sample;
 pub use shading::ShadingModel;
+pub use surface::SceneView;
 pub use view::{Eye, View};

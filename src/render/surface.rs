@@ -3,11 +3,21 @@
 //! factors, textures and COLOR_0, with the normal map's shading normal (`Surface`;
 //! WHITTED-materials.md sections 1 to 3). Rays, lights and recursion belong to the integrator.
 
-use super::integrator::SceneView;
 use super::shading::SurfacePoint;
 use crate::accel::{Hit, Intersect, Ray};
-use crate::scene::material::{AlphaMode, Material, NormalMap, TextureRef};
+use crate::scene::light::Light;
+use crate::scene::material::{AlphaMode, Material, NormalMap, Texture, TextureRef};
+use crate::scene::pose::Geometry;
 use glam::{Vec2, Vec3, Vec4};
+
+/// What the integrator reads of a posed frame.
+pub struct SceneView<'a, A: Intersect> {
+    pub accel: &'a A,
+    pub geometry: &'a Geometry,
+    pub materials: &'a [Material],
+    pub textures: &'a [Texture],
+    pub lights: &'a [Light],
+}
 
 /// The least `dot(n, v)` a normal-mapped shading normal keeps (WHITTED-materials.md section 3,
 /// the facing clamp): bumps tilted away from the viewer still get light and a mirror direction.

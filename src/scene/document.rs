@@ -157,6 +157,21 @@ impl Document<'_> {
             self.index(im.get("bufferView"), "bufferViews", || {
                 format!("images[{i}].bufferView")
             })?;
+            // glTF 2.0 "Images": exactly one of uri and bufferView, and a bufferView needs its
+            // mimeType; the gltf crate unwraps both.
+            let (uri, view) = (im.get("uri"), im.get("bufferView"));
+            if uri.is_some() == view.is_some() {
+                return Err(self.fail(
+                    format!("images[{i}]"),
+                    "must have exactly one of uri and bufferView",
+                ));
+            }
+            if view.is_some() && im.get("mimeType").is_none() {
+                return Err(self.fail(
+                    format!("images[{i}].mimeType"),
+                    "is required when the image is in a bufferView",
+                ));
+            }
         }
         self.check_meshes()?;
         self.check_animations()

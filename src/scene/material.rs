@@ -44,7 +44,16 @@ pub struct Material {
     /// KHR_materials_ior (glTF default 1.5).
     pub ior: f32,
     pub double_sided: bool,
+    /// Inputs of the file the renderer leaves out, each with the reason.
+    pub unused: Vec<&'static str>,
 }
+
+/// `Material::unused` entries.
+pub const OCCLUSION_UNUSED: &str = "occlusionTexture: no effect, it darkens only indirect (ambient) light, which Whitted has none of";
+pub const TRANSMISSION_TEXTURE_UNUSED: &str =
+    "transmissionTexture: ignored, the factor alone decides glass";
+pub const GLASS_ALPHA_UNUSED: &str =
+    "alphaMode: ignored on a transmissive material, which passes light by refraction";
 
 impl Default for Material {
     /// glTF 2.0 section 3.9.6: the default material when a primitive names none.
@@ -63,6 +72,7 @@ impl Default for Material {
             transmission: 0.0,
             ior: 1.5,
             double_sided: false,
+            unused: Vec::new(),
         }
     }
 }
@@ -289,7 +299,8 @@ impl Loader<'_> {
         })
     }
 
-    fn material(&mut self, m: &gltf::Material, notes: &mut Notes) -> Result<Material> {
+    fn material(&mut self, m: &gltf::Material) -> Result<Material> {
+        let mut unused = Vec::new();
         let index = m.index().unwrap_or(0);
         let at = |key: &str| format!("materials[{index}].{key}");
         let pbr = m.pbr_metallic_roughness();
@@ -349,14 +360,14 @@ impl Loader<'_> {
             None => None,
         };
         if m.occlusion_texture().is_some() {
-            notes.occlusion = true;
+            unused.push(OCCLUSION_UNUSED);
         }
         let transmission = m.transmission();
         if transmission
             .as_ref()
             .is_some_and(|t| t.transmission_texture().is_some())
         {
-            notes.ignored.push("transmissionTexture");
+            unused.push(TRANSMISSION_TEXTURE_UNUSED);
         }
         let bc = pbr.base_color_factor();
         // The schema's ranges: no factor may give infinite, NaN or negative radiance.
@@ -424,7 +435,7 @@ impl Loader<'_> {
         // outside the convention (WHITTED-materials.md section 1), and a hit would spawn
         // three rays.
         if alpha != AlphaMode::Opaque && transmission >= 0.5 {
-            notes.ignored.push("alphaMode on transmissive materials");
+            unused.push(GLASS_ALPHA_UNUSED);
             alpha = AlphaMode::Opaque;
         }
         Ok(Material {
@@ -441,15 +452,9 @@ impl Loader<'_> {
             transmission,
             ior: m.ior().unwrap_or(1.5),
             double_sided: m.double_sided(),
+            unused,
         })
     }
-}
-
-/// What the loader tells the user about inputs the renderer does not use.
-#[derive(Default)]
-struct Notes {
-    ignored: Vec<&'static str>,
-    occlusion: bool,
 }
 
 /// Materials of the document plus the default material at the end; the textures they sample,
@@ -465,27 +470,16 @@ pub(super) fn load_materials(
         decoded: BTreeMap::new(),
         order: Vec::new(),
     };
-    let mut notes = Notes::default();
     let mut materials = document
         .materials()
-        .map(|m| loader.material(&m, &mut notes))
+        .map(|m| loader.material(&m))
         .collect::<Result<Vec<_>>>()?;
     materials.push(Material::default());
-    if notes.occlusion {
-        warnings.push(format!(
-            "{}: occlusionTexture has no effect by design: the glTF specification lets it darken \
-             only indirect (ambient) light, which the Whitted model does not have",
-            file.display()
-        ));
-    }
-    if !notes.ignored.is_empty() {
-        notes.ignored.sort_unstable();
-        notes.ignored.dedup();
-        warnings.push(format!(
-            "{}: material inputs ignored: {}",
-            file.display(),
-            notes.ignored.join(", ")
-        ));
+    let mut unused: Vec<&str> = materials.iter().flat_map(|m| m.unused.clone()).collect();
+    unused.sort_unstable();
+    unused.dedup();
+    for what in unused {
+        warnings.push(format!("{}: {what}", file.display()));
     }
     let textures: Vec<gltf::Texture> = document.textures().collect();
     let textures = loader

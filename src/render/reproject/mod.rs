@@ -53,10 +53,14 @@ pub struct SourceSample {
 
 /// `SourceSample::prim` of a sample that hit nothing.
 const MISS: u32 = u32::MAX;
+/// `SourceSample::prim` of a sample whose camera ray passed a MASK cut-out: it lands nowhere,
+/// so the target traces around it (the other eye may see a bar where this one saw a hole).
+const THROUGH_CUT_OUT: u32 = u32::MAX - 1;
 
 impl SourceSample {
     pub fn new(film: Vec2, ray: &Ray, record: &PrimaryRecord, radiance: Vec3) -> SourceSample {
         let (point, prim) = match record.hit {
+            _ if record.through_cut_out => (record.point, THROUGH_CUT_OUT),
             Some(h) => (record.point, h.prim),
             None => (ray.dir, MISS),
         };
@@ -216,7 +220,7 @@ impl Reprojection {
         let land = |s: &SourceSample| -> Option<(usize, Vec2)> {
             let h = match s.prim {
                 MISS if misses => to_target * s.point.extend(0.0),
-                MISS => return None,
+                MISS | THROUGH_CUT_OUT => return None,
                 _ => to_target * s.point.extend(1.0),
             };
             let q = Vec2::new(h.x / h.w, h.y / h.w);
@@ -253,7 +257,7 @@ impl Reprojection {
                 let mut nearest = f32::INFINITY;
                 for (t, tile) in band_tiles.iter().enumerate() {
                     for (k, sample) in tile.iter().enumerate() {
-                        if sample.prim != MISS {
+                        if sample.prim != MISS && sample.prim != THROUGH_CUT_OUT {
                             nearest = nearest.min(source_depth.dot(sample.point.extend(1.0)));
                         }
                         let Some((i, q)) = land(sample) else {

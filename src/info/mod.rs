@@ -1,5 +1,9 @@
 //! `stereotrace info`: what a scene holds, and with `--accel` the kd-tree built over its rest pose.
 
+mod materials;
+
+pub use materials::{MaterialInputs, material_inputs};
+
 use crate::accel::TreeStats;
 use crate::accel::{BuildParams, KdTree, SplitMethod};
 use crate::error::{Error, Result};
@@ -21,6 +25,8 @@ pub struct SceneInfo {
     pub triangles: usize,
     pub materials: usize,
     pub textures_decoded: usize,
+    /// Each material's inputs and what the renderer does with them.
+    pub material_inputs: Vec<MaterialInputs>,
     pub point_lights: usize,
     pub spot_lights: usize,
     pub directional_lights: usize,
@@ -70,6 +76,7 @@ pub fn scene_info(
         triangles,
         materials: scene.materials.len() - 1,
         textures_decoded: scene.textures.len(),
+        material_inputs: material_inputs(scene),
         point_lights: count(|k| matches!(k, LightKind::Point)),
         spot_lights: count(|k| matches!(k, LightKind::Spot { .. })),
         directional_lights: count(|k| matches!(k, LightKind::Directional)),
@@ -111,6 +118,16 @@ impl fmt::Display for SceneInfo {
             "materials   {} ({} textures decoded)",
             self.materials, self.textures_decoded
         )?;
+        for m in &self.material_inputs {
+            let name = m
+                .name
+                .as_deref()
+                .map_or("(unnamed)".into(), |n| format!("{n:?}"));
+            writeln!(f, "  {}: {name}", m.index)?;
+            for input in &m.inputs {
+                writeln!(f, "      {input}")?;
+            }
+        }
         writeln!(
             f,
             "lights      {} point, {} spot, {} directional",
