@@ -117,7 +117,8 @@ pub struct PrimaryRecord {
     /// The hit point (barycentric, as shading computed it).
     pub point: Vec3,
     /// Lights (bit i: light i) whose shadow ray from the hit was traced and reached the light,
-    /// and those whose shadow ray was blocked.
+    /// and those whose shadow ray was blocked; both bits where it arrived in part (through
+    /// BLEND surfaces).
     pub lit: u32,
     pub shadowed: u32,
     /// The width of the surface's highlight lobe (GGX alpha = roughness^2) where its radiance
@@ -282,9 +283,11 @@ impl<A: Intersect> Integrator<'_, A> {
                     shadowed: shadows[i].1,
                     lobe: match &surfaces[i] {
                         Some(s)
+                            // A BLEND surface's radiance holds what lies behind it, and a MASK
+                            // surface's pixel may hold holes: neither stands for another view.
                             if !s.glass
                                 && s.point.roughness != 0.0
-                                && s.mat.alpha != AlphaMode::Blend =>
+                                && !s.mat.is_transparent() =>
                         {
                             s.point.roughness * s.point.roughness
                         }
@@ -386,7 +389,8 @@ impl<A: Intersect> Integrator<'_, A> {
                     continue;
                 }
                 let (lit, shadowed) = known[*lane];
-                if (lit | shadowed) & bit != 0 {
+                // One bit alone is an answer; both (a partial one) or none are traced.
+                if (lit ^ shadowed) & bit != 0 {
                     visible_of[n] = if shadowed & bit != 0 { 0.0 } else { 1.0 };
                 } else {
                     (shadow[k], limits[k], traced[k]) = (q.shadow, q.t_max, n);
@@ -409,14 +413,17 @@ impl<A: Intersect> Integrator<'_, A> {
             n_known += (n - k) as u64;
             for (&index, &vis) in members[..n].iter().zip(&visible_of[..n]) {
                 let (lane, q) = &queries[index];
-                // A light seen through BLEND surfaces is neither lit nor shadowed: another view
-                // traces its own shadow ray there.
-                if vis == 0.0 {
+                // A light seen through BLEND surfaces is recorded as both lit and shadowed: a
+                // window of samples with such an answer disagrees, so another view traces its
+                // own shadow rays there.
+                if vis < 1.0 {
                     answers[*lane].1 |= bit;
-                    continue;
                 }
-                if vis == 1.0 {
+                if vis > 0.0 {
                     answers[*lane].0 |= bit;
+                }
+                if vis == 0.0 {
+                    continue;
                 }
                 if let Some(s) = &surfaces[*lane] {
                     let term = self.direct_term(s, q);
