@@ -16,11 +16,13 @@ use std::path::{Path, PathBuf};
 use stereotrace::pipeline::{FrameTracer, LoadedPipeline};
 use stereotrace::render::View;
 
-/// glTF JSON files of the test data, each with the files it references.
-const GLTF: [&str; 3] = [
+/// glTF JSON files of the test data, each with the files it references (materials_public:
+/// every material input, with its textures beside it).
+const GLTF: [&str; 4] = [
     "scenes/SimpleSkin/SimpleSkin.gltf",
     "scenes/SimpleMorph/SimpleMorph.gltf",
     "scenes/Cameras/Cameras.gltf",
+    "refs/materials_public/scene.gltf",
 ];
 const GLB: [&str; 3] = [
     "scenes/Box/Box.glb",
@@ -224,7 +226,7 @@ proptest! {
 /// crate's readers.
 #[test]
 fn cases_the_fuzzer_found_are_refused_naming_the_object() {
-    let cases: [(&str, &[&str], Value, &str); 3] = [
+    let cases: [(&str, &[&str], Value, &str); 5] = [
         // A VEC4 of unsigned shorts read as the skin's MAT4 float inverse bind matrices.
         (
             "scenes/SimpleSkin/SimpleSkin.gltf",
@@ -245,6 +247,20 @@ fn cases_the_fuzzer_found_are_refused_naming_the_object() {
             &["animations", "0", "samplers", "0", "output"],
             json!(1),
             "animations[0].samplers[0].output: must be an accessor of VEC4",
+        ),
+        // An image with neither a URI nor a buffer view.
+        (
+            "refs/materials_public/scene.gltf",
+            &["images", "0"],
+            json!({}),
+            "images[0]: must have exactly one of uri and bufferView",
+        ),
+        // A MASK cutoff below zero.
+        (
+            "refs/materials_public/scene.gltf",
+            &["materials", "2", "alphaCutoff"],
+            json!(-1),
+            "materials[2].alphaCutoff",
         ),
     ];
     for (file, path, value, expected) in cases {
