@@ -11,6 +11,7 @@ mod collisions;
 mod depth_check;
 mod edit;
 mod frame_log;
+mod head_light;
 mod interrupt;
 mod location;
 mod manifest;

@@ -351,6 +351,7 @@ mod tests {
                 near: Some(near),
                 far: Some(far),
                 centre: Some(0.5 * (near + far)),
+                near_most: None,
                 columns: vec![(0.5, near), (99.5, far)],
             },
             subject: None,

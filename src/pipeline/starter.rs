@@ -2,7 +2,7 @@
 //! frame range filled in and every output kind present (all but one commented out), so that
 //! nobody writes a pipeline from the README by hand.
 
-use super::trace::distance_to_bounds;
+use super::head_light::distance_to_bounds;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
 use crate::scene::{Scene, framing_camera};

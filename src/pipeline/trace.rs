@@ -3,6 +3,7 @@
 //! `bench sweep` times it and measures its error. Nothing here writes a file.
 
 use super::LoadedPipeline;
+use super::head_light::head_light;
 use super::outputs::StereoFrame;
 use super::rig_plan::{FrameProbe, FrameRig, RigPlanner};
 use crate::accel::{BuildParams, Intersect, LogRow, Updater};
@@ -13,7 +14,7 @@ use crate::render::{
     ProbeCamera, RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample,
     TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
 };
-use crate::scene::{Animation, Light, LightKind, PosedScene, framing_camera};
+use crate::scene::{Animation, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -287,7 +288,9 @@ impl<'p> FrameTracer<'p> {
         let bounds = self.range_bounds.or_else(|| posed.geometry.bounds());
         let (camera_world, yfov, znear, zfar) = frame_camera(p, &posed, bounds);
         let lights = if posed.lights.is_empty() {
-            vec![head_light(&camera_world, bounds)]
+            vec![head_light(&camera_world, bounds, || {
+                frame_probe(p, &posed, bounds, &accel).depth.near_most
+            })]
         } else {
             posed.lights.clone()
         };
@@ -512,37 +515,6 @@ fn frame_camera(
     }
 }
 
-/// The distance from `point` to the nearest point of the box `bounds`, or to its centre when
-/// `point` is inside it.
-pub(super) fn distance_to_bounds(point: Vec3, (lo, hi): (Vec3, Vec3)) -> f32 {
-    match point.distance(point.clamp(lo, hi)) {
-        d if d > 0.0 => d,
-        _ => point.distance((lo + hi) * 0.5),
-    }
-}
-
-/// The radiance of a white diffuse surface facing the head-light at the nearest point of the
-/// scene's bounds: below 1 so that the nearest surfaces keep their shading instead of clipping
-/// to white in an 8-bit output (surfaces further away are darker by the square of distance).
-const HEAD_LIGHT_WHITE: f32 = 0.8;
-
-/// A scene without lights gets a head-light: a point light at the rig's centre whose intensity
-/// is `HEAD_LIGHT_WHITE * pi * d^2`, with `d` the distance to the nearest point of the scene's
-/// bounds (to their centre when the camera is inside them).
-fn head_light(camera: &Mat4, bounds: Option<(Vec3, Vec3)>) -> Light {
-    let position = camera.transform_point3(Vec3::ZERO);
-    let d2 = bounds
-        .map_or(1.0, |b| distance_to_bounds(position, b).powi(2))
-        .max(1e-6);
-    Light {
-        kind: LightKind::Point,
-        power: Vec3::splat(HEAD_LIGHT_WHITE * std::f32::consts::PI * d2),
-        position,
-        direction: camera.transform_vector3(Vec3::NEG_Z),
-        range: None,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -577,7 +549,7 @@ mod tests {
             let posed = p.scene.pose_at(&tracer.animations, k as f32 / 24.0);
             let bounds = posed.geometry.bounds().unwrap();
             let (world, ..) = frame_camera(&p, &posed, tracer.range_bounds);
-            let light = head_light(&world, tracer.range_bounds);
+            let light = head_light(&world, tracer.range_bounds, || None);
             (bounds, world, light.position, light.power)
         };
         let (first, world, position, power) = frame(0);

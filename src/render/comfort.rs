@@ -196,6 +196,7 @@ mod tests {
             near: Some(near),
             far: Some(far),
             centre: Some(far),
+            near_most: None,
             columns: vec![(0.5, near), (639.5, far)],
         }
     }

@@ -38,6 +38,9 @@ pub struct DepthProbe {
     pub far: Option<f32>,
     /// The median depth of the hits in the middle third of the film, both ways.
     pub centre: Option<f32>,
+    /// The depth a twentieth of the hits are nearer than: where most of what the camera sees
+    /// begins, a stray near object aside (the head-light of a camera inside the scene).
+    pub near_most: Option<f32>,
     /// Per probe column, left to right: its film x (pixels, at the column's centre) and the
     /// nearest depth hit in it (`f32::INFINITY` where every ray of the column missed).
     pub columns: Vec<(f32, f32)>,
@@ -82,6 +85,9 @@ impl DepthProbe {
             .collect();
         let hits = || depths.iter().flatten().copied().filter(|d| d.is_finite());
         let near = hits().reduce(f32::min);
+        let mut all: Vec<f32> = hits().collect();
+        all.sort_unstable_by(f32::total_cmp);
+        let near_most = all.get(all.len() / 20).copied();
         let far = hits().reduce(f32::max);
         let mut middle: Vec<f32> = depths[rows / 3..rows - rows / 3]
             .iter()
@@ -104,6 +110,7 @@ impl DepthProbe {
             near,
             far,
             centre,
+            near_most,
             columns,
         }
     }

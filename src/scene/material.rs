@@ -548,6 +548,17 @@ mod tests {
     }
 
     #[test]
+    fn texture_transform_scales_then_rotates_toward_minus_v_then_offsets() {
+        // KHR_texture_transform's text: r = pi/2 turns (1, 0) to (0, -1).
+        let quarter = UvTransform::new([0.0, 0.0], std::f32::consts::FRAC_PI_2, [1.0, 1.0]);
+        assert!(quarter.apply(Vec2::X).distance(Vec2::new(0.0, -1.0)) < 1e-6);
+        // Scale before rotation: (1, 0) scaled by 2 in u, turned, then offset.
+        let t = UvTransform::new([0.25, -0.5], std::f32::consts::FRAC_PI_2, [2.0, 3.0]);
+        assert!(t.apply(Vec2::X).distance(Vec2::new(0.25, -2.5)) < 1e-6);
+        assert!(t.apply(Vec2::Y).distance(Vec2::new(3.25, -0.5)) < 1e-6);
+    }
+
+    #[test]
     fn srgb_decode_matches_the_standard_at_its_knee_and_ends() {
         assert_eq!(srgb_to_linear(0.0), 0.0);
         assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);

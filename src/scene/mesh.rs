@@ -436,6 +436,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn generated_tangents_follow_u_with_the_bitangent_toward_image_up() {
+        // WHITTED-materials.md section 2: a quad in the XZ plane, normal +Y, u along +X and v
+        // along +Z gets T = +X and w = +1 (B = cross(N, T) * w = -Z, decreasing v).
+        let positions = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ];
+        let normals = [Vec3::Y; 4];
+        let uv = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 1.0),
+        ];
+        // Counter-clockwise seen from +Y.
+        let triangles = [[0, 2, 1], [0, 3, 2]];
+        for t in generated_tangents(&positions, Some(&normals), &uv, &triangles) {
+            assert!(t.truncate().distance(Vec3::X) < 1e-5, "{t}");
+            assert_eq!(t.w, 1.0);
+        }
+        // The UVs mirrored in u: the tangent turns to -X and the handedness flips.
+        let mirrored = uv.map(|p| Vec2::new(1.0 - p.x, p.y));
+        for t in generated_tangents(&positions, Some(&normals), &mirrored, &triangles) {
+            assert!(t.truncate().distance(-Vec3::X) < 1e-5, "{t}");
+            assert_eq!(t.w, -1.0);
+        }
+    }
+
+    #[test]
     fn strips_and_fans_keep_the_winding_of_their_first_triangle() {
         assert_eq!(
             triangulate(Mode::TriangleStrip, &[0, 1, 2, 3, 4]),
