@@ -18,6 +18,7 @@ impl<A: Intersect> Integrator<'_, A> {
     /// goes on from the far side of the hit, same direction, for the rest of its range, until
     /// it finds a hit that exists or nothing (WHITTED-materials.md section 4). The hit's `t`
     /// stays measured from the first origin. Returns the lanes (bit i: lane i) that passed one.
+    #[inline]
     pub(super) fn pass_cut_outs(
         &self,
         rays: &[Ray],
@@ -81,6 +82,7 @@ impl<A: Intersect> Integrator<'_, A> {
     /// uncut MASK surface; cut-outs are passed; each BLEND surface crossed lets `1 - a` through
     /// (untinted, WHITTED-materials.md section 4). Without MASK or BLEND materials it is the
     /// any-hit answer.
+    #[inline]
     pub(super) fn visibility(
         &self,
         light: &Light,

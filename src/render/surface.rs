@@ -74,6 +74,7 @@ impl<A: Intersect> SceneView<'_, A> {
     /// The material's values at a hit (WHITTED-materials.md section 1): base colour, roughness
     /// and metalness, emission and coverage from factors, textures and COLOR_0; the shading
     /// normal from the normal map.
+    #[inline]
     pub(super) fn surface(&self, ray: &Ray, hit: &Hit) -> Surface<'_> {
         let mut sh = self.shading_point(ray, hit);
         let mat = &self.materials[sh.material as usize];
@@ -112,6 +113,7 @@ impl<A: Intersect> SceneView<'_, A> {
     }
 
     /// A texture slot's value at a shading point (`None`: the material has no texture there).
+    #[inline]
     pub(super) fn texel(&self, slot: &Option<TextureRef>, sh: &Shading) -> Option<Vec4> {
         let slot = slot.as_ref()?;
         Some(self.textures[slot.texture].sample(slot.uv(&sh.uv)))
@@ -153,6 +155,7 @@ impl<A: Intersect> SceneView<'_, A> {
         sh.n = shading;
     }
 
+    #[inline]
     pub(super) fn shading_point(&self, ray: &Ray, hit: &Hit) -> Shading {
         let g = self.geometry;
         let [i0, i1, i2] = g.triangles[hit.prim as usize].map(|i| i as usize);
@@ -189,6 +192,7 @@ impl<A: Intersect> SceneView<'_, A> {
     }
 
     /// Base colour (RGB) and coverage (A): factor x texture x COLOR_0.
+    #[inline]
     pub(super) fn base_color(&self, mat: &Material, sh: &Shading) -> Vec4 {
         let mut c = mat.base_color * sh.color;
         if let Some(t) = self.texel(&mat.base_color_texture, sh) {
