@@ -60,6 +60,21 @@ impl Case {
         p
     }
 
+    /// Runs `render` and checks that it succeeds.
+    fn renders(&self, pipeline: &Path) {
+        let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .args(["render", "--quiet", "--out"])
+            .arg(self.dir.join("out"))
+            .arg(pipeline)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+
     /// Runs `render` and checks the failure contract; returns stderr.
     fn fails(&self, pipeline: &Path, expected_in_message: &[&str]) -> String {
         let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
@@ -242,17 +257,7 @@ fn the_valid_triangle_renders() {
     let c = Case::new("valid");
     c.file("s.gltf", triangle_gltf(GOOD_TRIANGLE, |_| {}));
     let p = c.file("p.toml", pipeline("s.gltf", ""));
-    let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-        .args(["render", "--quiet", "--out"])
-        .arg(c.dir.join("out"))
-        .arg(&p)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    c.renders(&p);
     assert!(c.dir.join("out/img_left.png").is_file());
     assert!(c.dir.join("out/img_right.png").is_file());
 }
@@ -1152,15 +1157,5 @@ fn material_inputs_that_cannot_be_rendered() {
         }),
     );
     let p = c.file("p.toml", pipeline("s.gltf", ""));
-    let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-        .args(["render", "--quiet", "--out"])
-        .arg(c.dir.join("out"))
-        .arg(&p)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    c.renders(&p);
 }

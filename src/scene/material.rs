@@ -304,39 +304,24 @@ impl Loader<'_> {
         let index = m.index().unwrap_or(0);
         let at = |key: &str| format!("materials[{index}].{key}");
         let pbr = m.pbr_metallic_roughness();
-        let base_color_texture = pbr
-            .base_color_texture()
-            .map(|i| {
-                self.slot(
-                    &at("pbrMetallicRoughness.baseColorTexture"),
-                    (i.texture(), i.tex_coord()),
-                    i.texture_transform(),
-                    Encoding::Srgb,
-                )
+        let mut info_slot = |key: &str, info: Option<gltf::texture::Info>, encoding| {
+            info.map(|i| {
+                let texture = (i.texture(), i.tex_coord());
+                self.slot(&at(key), texture, i.texture_transform(), encoding)
             })
-            .transpose()?;
-        let metallic_roughness_texture = pbr
-            .metallic_roughness_texture()
-            .map(|i| {
-                self.slot(
-                    &at("pbrMetallicRoughness.metallicRoughnessTexture"),
-                    (i.texture(), i.tex_coord()),
-                    i.texture_transform(),
-                    Encoding::Linear,
-                )
-            })
-            .transpose()?;
-        let emissive_texture = m
-            .emissive_texture()
-            .map(|i| {
-                self.slot(
-                    &at("emissiveTexture"),
-                    (i.texture(), i.tex_coord()),
-                    i.texture_transform(),
-                    Encoding::Srgb,
-                )
-            })
-            .transpose()?;
+            .transpose()
+        };
+        let base_color_texture = info_slot(
+            "pbrMetallicRoughness.baseColorTexture",
+            pbr.base_color_texture(),
+            Encoding::Srgb,
+        )?;
+        let metallic_roughness_texture = info_slot(
+            "pbrMetallicRoughness.metallicRoughnessTexture",
+            pbr.metallic_roughness_texture(),
+            Encoding::Linear,
+        )?;
+        let emissive_texture = info_slot("emissiveTexture", m.emissive_texture(), Encoding::Srgb)?;
         let normal_texture = match m.normal_texture() {
             Some(n) => {
                 let scale = n.scale();
