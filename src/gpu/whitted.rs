@@ -110,8 +110,7 @@ struct FrameParams {
     first: u32,
     count: u32,
     parts: u32,
-    /// 1 where a material is MASK or BLEND: hits test their coverage, shadow rays walk on.
-    transparent: u32,
+    pad1: u32,
     background: [f32; 3],
     max_depth: u32,
     shading: u32,
@@ -136,7 +135,7 @@ pub struct GpuScene {
     textures: wgpu::Buffer,
     texels: SplitArray,
     light_count: u32,
-    transparent: bool,
+    features: GpuFeatures,
 }
 
 /// A storage buffer of `items` that a frame may write again, holding one zeroed item when there
@@ -214,7 +213,7 @@ impl GpuScene {
             });
             texels.extend(t.texels.iter().map(|v| v.to_array()));
         }
-        let transparent = materials.iter().any(Material::is_transparent);
+        let features = GpuFeatures::of(materials);
         let materials: Vec<GpuMaterial> = materials
             .iter()
             .map(|m| {
@@ -252,7 +251,7 @@ impl GpuScene {
             lights: array(gpu, "the lights", &gpu_lights)?,
             textures: array(gpu, "the textures", &headers)?,
             texels: SplitArray::filled(gpu, "the texels", &texels, limit)?,
-            transparent,
+            features,
         })
     }
 
@@ -351,14 +350,71 @@ fn lights_of(lights: &[Light]) -> Vec<GpuLight> {
 
 /// The compiled integrator.
 pub struct GpuWhitted {
-    pipeline: wgpu::ComputePipeline,
+    /// A kernel per set of material inputs, compiled when a scene first needs it.
+    kernels: std::sync::Mutex<Vec<(GpuFeatures, std::sync::Arc<wgpu::ComputePipeline>)>>,
+}
+
+/// The material inputs a scene's materials use, each a constant of the Whitted kernel
+/// (`whitted.wgsl`): a kernel leaves out the code of inputs its scene lacks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuFeatures {
+    /// A MASK or BLEND material.
+    pub transparent: bool,
+    pub normal_maps: bool,
+    pub metallic_roughness_textures: bool,
+    pub emissive_textures: bool,
+}
+
+impl GpuFeatures {
+    pub fn of(materials: &[Material]) -> GpuFeatures {
+        let any = |f: fn(&Material) -> bool| materials.iter().any(f);
+        GpuFeatures {
+            transparent: any(Material::is_transparent),
+            normal_maps: any(|m| m.normal_texture.is_some()),
+            metallic_roughness_textures: any(|m| m.metallic_roughness_texture.is_some()),
+            emissive_textures: any(|m| m.emissive_texture.is_some()),
+        }
+    }
 }
 
 impl GpuWhitted {
+    /// The integrator, with the kernel of opaque, untextured scenes compiled (so that a shader
+    /// the adapter refuses is an error here).
     pub fn new(gpu: &Gpu) -> Result<GpuWhitted> {
+        let whitted = GpuWhitted {
+            kernels: std::sync::Mutex::new(Vec::new()),
+        };
+        whitted.kernel(gpu, GpuFeatures::default())?;
+        Ok(whitted)
+    }
+
+    /// The kernel for a scene's material inputs, compiled on first use.
+    fn kernel(
+        &self,
+        gpu: &Gpu,
+        features: GpuFeatures,
+    ) -> Result<std::sync::Arc<wgpu::ComputePipeline>> {
+        let mut kernels = self.kernels.lock().expect("no kernel compile panicked");
+        if let Some((_, k)) = kernels.iter().find(|(f, _)| *f == features) {
+            return Ok(k.clone());
+        }
+        let kernel = std::sync::Arc::new(Self::compile(gpu, features)?);
+        kernels.push((features, kernel.clone()));
+        Ok(kernel)
+    }
+
+    fn compile(gpu: &Gpu, features: GpuFeatures) -> Result<wgpu::ComputePipeline> {
         // The short stack: a ray's walk state stays small next to the integrator's own stack of
         // waiting rays, and every walk finds the same hits.
-        let source = walk_source(SHORT_STACK, include_str!("whitted.wgsl"));
+        let flag = |on: bool| if on { "true" } else { "false" };
+        let source = walk_source(SHORT_STACK, include_str!("whitted.wgsl"))
+            .replace("__TRANSPARENT__", flag(features.transparent))
+            .replace("__NORMAL_MAPS__", flag(features.normal_maps))
+            .replace(
+                "__METALLIC_ROUGHNESS_TEXTURES__",
+                flag(features.metallic_roughness_textures),
+            )
+            .replace("__EMISSIVE_TEXTURES__", flag(features.emissive_textures));
         let module = checked(gpu, "compiling the Whitted shader", || {
             gpu.device
                 .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -366,7 +422,7 @@ impl GpuWhitted {
                     source: wgpu::ShaderSource::Wgsl(source.into()),
                 })
         })?;
-        let pipeline = checked(gpu, "building the Whitted pipeline", || {
+        checked(gpu, "building the Whitted pipeline", || {
             gpu.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("whitted"),
@@ -376,8 +432,7 @@ impl GpuWhitted {
                     compilation_options: Default::default(),
                     cache: None,
                 })
-        })?;
-        Ok(GpuWhitted { pipeline })
+        })
     }
 
     /// The radiance along each camera ray (`Integrator::radiance` on the CPU), with its limit,
@@ -433,7 +488,7 @@ impl GpuWhitted {
                 first: first as u32,
                 count: count as u32,
                 parts: accel.part_count,
-                transparent: scene.transparent as u32,
+                pad1: 0,
                 background: settings.background.to_array(),
                 max_depth: settings.max_depth,
                 shading: match settings.shading {
@@ -469,7 +524,7 @@ impl GpuWhitted {
         rest.extend(part_bindings(accel));
         dispatch_rays(
             gpu,
-            &self.pipeline,
+            &*self.kernel(gpu, scene.features)?,
             (rays.len(), per_dispatch),
             uniform,
             &first,

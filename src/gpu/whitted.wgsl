@@ -19,8 +19,7 @@ struct Frame {
     count: u32,
     // Rows of the part table.
     parts: u32,
-    // 1 where a material is MASK or BLEND: hits test their coverage, shadow rays walk on.
-    transparent: u32,
+    pad1: u32,
     background: vec3<f32>,
     max_depth: u32,
     // 0: Cook-Torrance (the glTF BRDF), 1: Phong.
@@ -157,6 +156,15 @@ const FAR: f32 = 3.4028235e38;
 const FACING_MIN: f32 = 0.01;
 // integrator.rs `MAX_CROSSINGS`: cut-outs and BLEND surfaces one ray passes at most.
 const MAX_CROSSINGS: u32 = 256u;
+// The material inputs some material of the scene uses (`GpuFeatures`): the host compiles a
+// kernel for each set a scene needs, so that a scene pays for no input it lacks. Opaque, untextured
+// scenes run the kernel they ran before these inputs existed (a loop around the walk, even one
+// that never turns, or texture lookups never taken, cost lavapipe a fifth of its speed).
+// MASK or BLEND materials: hits test their coverage and shadow rays walk on.
+const TRANSPARENT: bool = __TRANSPARENT__;
+const NORMAL_MAPS: bool = __NORMAL_MAPS__;
+const METALLIC_ROUGHNESS_TEXTURES: bool = __METALLIC_ROUGHNESS_TEXTURES__;
+const EMISSIVE_TEXTURES: bool = __EMISSIVE_TEXTURES__;
 
 // `offset_origin` of integrator.rs (Wächter and Binder, Ray Tracing Gems ch. 6): a few ulps of
 // the point's own coordinates along `n`, a fixed step near the origin.
@@ -240,9 +248,10 @@ fn slot_texel(s: Slot, k: Corner) -> vec4<f32> {
 }
 
 // `Integrator::base_color`: base colour (RGB) and coverage (A), factor x texture x COLOR_0.
-fn base_color(m: Material, k: Corner) -> vec4<f32> {
+fn base_color(k: Corner) -> vec4<f32> {
+    let m = &materials[k.material];
     let color = k.a.color * k.w.x + k.b.color * k.w.y + k.c.color * k.w.z;
-    return m.base_color * color * slot_texel(m.base_color_slot, k);
+    return (*m).base_color * color * slot_texel((*m).base_color_slot, k);
 }
 
 fn barycentric_point(k: Corner) -> vec3<f32> {
@@ -258,17 +267,20 @@ fn beyond(k: Corner, d: vec3<f32>) -> vec3<f32> {
 // `Integrator::pass_cut_outs`: the closest hit that exists, passing MASK hits whose coverage is
 // below the cutoff; `t` from the first origin.
 fn trace_visible(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> HitOut {
+    if !TRANSPARENT {
+        return trace(o, d, t_max, false, frame.parts);
+    }
     var origin = o;
     var travelled = 0.0;
     for (var i = 0u; i < MAX_CROSSINGS; i++) {
         var hit = trace(origin, d, t_max - travelled, false, frame.parts);
-        if hit.prim == NO_PRIM || frame.transparent == 0u {
+        if hit.prim == NO_PRIM {
             hit.t += travelled;
             return hit;
         }
         let k = corner_of(hit);
-        let m = materials[k.material];
-        if m.alpha_mode != 1u || base_color(m, k).w >= m.alpha_cutoff {
+        let m = &materials[k.material];
+        if (*m).alpha_mode != 1u || base_color(k).w >= (*m).alpha_cutoff {
             hit.t += travelled;
             return hit;
         }
@@ -284,27 +296,27 @@ fn trace_visible(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> HitOut {
 // `Integrator::visibility`: the fraction of a shadow ray that reaches the light. Opaque scenes
 // ask for any hit; otherwise cut-outs are passed and each BLEND surface lets 1 - a through.
 fn visibility(o: vec3<f32>, d: vec3<f32>, t_max: f32, light: Light) -> f32 {
-    let any = frame.transparent == 0u;
+    if !TRANSPARENT {
+        shadow_rays += 1u;
+        return select(1.0, 0.0, trace(o, d, t_max, true, frame.parts).prim != NO_PRIM);
+    }
     var origin = o;
     var dir = d;
     var seen = 1.0;
     for (var i = 0u; i < MAX_CROSSINGS; i++) {
         shadow_rays += 1u;
-        let hit = trace(origin, dir, t_max, any, frame.parts);
+        let hit = trace(origin, dir, t_max, false, frame.parts);
         if hit.prim == NO_PRIM {
             return seen;
         }
-        if any {
-            return 0.0;
-        }
         let k = corner_of(hit);
-        let m = materials[k.material];
-        if m.alpha_mode == 0u {
+        let m = &materials[k.material];
+        if (*m).alpha_mode == 0u {
             return 0.0;
         }
-        let a = base_color(m, k).w;
-        if m.alpha_mode == 1u {
-            if a >= m.alpha_cutoff {
+        let a = base_color(k).w;
+        if (*m).alpha_mode == 1u {
+            if a >= (*m).alpha_cutoff {
                 return 0.0;
             }
         } else {
@@ -482,25 +494,32 @@ fn main(
         let side = select(-1.0, 1.0, front);
         let ng = ng0 * side;
         let v = -ray.dir;
-        let m = materials[k.material];
-        let base_alpha = base_color(m, k);
+        let m = &materials[k.material];
+        let base_alpha = base_color(k);
         let base = base_alpha.xyz;
-        let mr = slot_texel(m.metallic_roughness_slot, k);
-        let roughness = m.roughness * mr.y;
-        let metallic = m.metallic * mr.z;
-        let emissive = m.emissive * slot_texel(m.emissive_slot, k).xyz;
+        var roughness = (*m).roughness;
+        var metallic = (*m).metallic;
+        if METALLIC_ROUGHNESS_TEXTURES {
+            let mr = slot_texel((*m).metallic_roughness_slot, k);
+            roughness *= mr.y;
+            metallic *= mr.z;
+        }
+        var emissive = (*m).emissive;
+        if EMISSIVE_TEXTURES {
+            emissive *= slot_texel((*m).emissive_slot, k).xyz;
+        }
         var n = ns * side;
         // `map_normal`: the normal map's normal in the interpolated tangent frame, turned to
         // the viewer and clamped to face it.
-        let mapped = m.normal_slot.texture >= 0;
+        let mapped = NORMAL_MAPS && (*m).normal_slot.texture >= 0;
         if mapped {
             let interp_t = k.a.tangent.xyz * k.w.x + k.b.tangent.xyz * k.w.y + k.c.tangent.xyz * k.w.z;
             let t = normalize_or_zero(interp_t - ns * dot(ns, interp_t));
             var np = ns;
             if any(t != vec3<f32>(0.0)) {
                 let bitangent = cross(ns, t) * k.a.tangent.w;
-                let c = slot_texel(m.normal_slot, k);
-                let s = m.normal_scale;
+                let c = slot_texel((*m).normal_slot, k);
+                let s = (*m).normal_scale;
                 let local = vec3<f32>((2.0 * c.x - 1.0) * s, (2.0 * c.y - 1.0) * s, 2.0 * c.z - 1.0);
                 let q = normalize_or_zero(local.x * t + local.y * bitangent + local.z * ns);
                 np = select(ns, q, any(q != vec3<f32>(0.0)));
@@ -511,8 +530,8 @@ fn main(
                 n = normalize(n + (FACING_MIN - facing) * v);
             }
         }
-        let glass = m.transmission >= 0.5;
-        let blend = m.alpha_mode == 2u;
+        let glass = (*m).transmission >= 0.5;
+        let blend = TRANSPARENT && (*m).alpha_mode == 2u;
         let alpha = select(1.0, base_alpha.w, blend);
         var here = emissive;
         if !glass && dot(n, v) > 0.0 {
@@ -536,7 +555,7 @@ fn main(
         let reflect_dir = normalize(ray.dir + 2.0 * cos_i * n);
         var reflect_weight = vec3<f32>(0.0);
         if glass {
-            let eta = select(m.ior, 1.0 / m.ior, front);
+            let eta = select((*m).ior, 1.0 / (*m).ior, front);
             let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
             var f = 1.0;
             if sin2_t < 1.0 {
