@@ -499,7 +499,7 @@ mod on_gpu {
     }
 
     /// The GPU integrator against the CPU's (`Integrator::radiance`) on the reference scenes,
-    /// the default scenes and a textured model, each with a spot and a directional light added,
+    /// the default scenes, a textured model and two with every material input, each with a spot and a directional light added,
     /// with both shading models: every camera ray's radiance within 1e-3 of the CPU's in every
     /// channel and within 1e-6 on average. Measured when written: at most 9.2e-5 (a glass
     /// path), on average at most 2.8e-8; they differ where the GPU fuses a multiply and an add
@@ -520,7 +520,11 @@ mod on_gpu {
         scenes.push(repo.join("scenes/whitted.gltf"));
         scenes.push(repo.join("scenes/whitted_diffuse.gltf"));
         scenes.push(data.join("scenes/Duck/Duck.glb"));
-        assert!(scenes.len() >= 7, "{scenes:?}");
+        // Every material input: normal, metallic-roughness and emissive textures, MASK and
+        // BLEND, texture transforms (besides materials_public among the references).
+        scenes.push(repo.join("scenes/cutout.gltf"));
+        scenes.push(data.join("scenes/DamagedHelmet/DamagedHelmet.glb"));
+        assert!(scenes.len() >= 9, "{scenes:?}");
         for path in &scenes {
             let scene = Scene::load(path).unwrap();
             let posed = pose::pose(&scene, &[]);
