@@ -367,8 +367,14 @@ fn write_differences(
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
     let mut written = Vec::new();
     for (name, pa) in va {
-        let Some((_, pb)) = vb.iter().find(|(n, _)| n == name) else {
-            continue;
+        // One view each is compared whatever the views are called (`compare_views`), and so
+        // is its difference written.
+        let pb = match vb {
+            [(_, only)] if va.len() == 1 => only,
+            _ => match vb.iter().find(|(n, _)| n == name) {
+                Some((_, pb)) => pb,
+                None => continue,
+            },
         };
         let path = if several {
             let stem = out

@@ -30,6 +30,31 @@ fn a_png_difference_is_the_largest_channel_difference_in_grey() {
 }
 
 #[test]
+fn one_view_each_writes_its_difference_whatever_the_views_are_called() {
+    // Our per-eye file (view "right") against a plain RGB reference: compared, so differenced.
+    let a = planes(1, 1, &[[0.5, 0.5, 0.5]]);
+    let b = planes(1, 1, &[[0.5, 0.25, 0.5]]);
+    let dir = std::env::temp_dir().join(format!("stereotrace-diff1-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("d.png");
+    let inputs = [Path::new("a.exr"), Path::new("b.exr")];
+    let written = write_differences(
+        &[("right".to_string(), a)],
+        &[("RGB".to_string(), b)],
+        &out,
+        1.0,
+        inputs,
+    )
+    .unwrap();
+    assert_eq!(written, vec![out.clone()]);
+    assert_eq!(
+        image::open(&out).unwrap().to_rgb8().get_pixel(0, 0).0,
+        [64; 3]
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn a_pixel_fails_once_however_many_channels_exceed() {
     let a = planes(2, 1, &[[0.0; 3], [0.0; 3]]);
     let b = planes(2, 1, &[[0.2, 0.3, 0.0], [0.0; 3]]);
