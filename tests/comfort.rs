@@ -296,19 +296,105 @@ fn stereo_videos_are_reported_as_stereo_by_ffprobe_with_their_layout() {
         assert_eq!(side["inverted"], inverted, "{file}");
     }
     // MP4: H.264's frame-packing SEI, reported on the decoded frames; ffprobe names the side
-    // data and FFmpeg's showinfo filter prints its layout.
+    // data but prints no layout for it, and showinfo's text differs between FFmpeg versions
+    // (5.1: "stereoscopic information", later: "Stereo 3D"), so the layout is read from the
+    // bitstream itself.
     let mp4 = out.join("sbs.mp4");
     let v = probe_json(&ffprobe, &["-show_frames", "-read_intervals", "%+#1"], &mp4);
     let frame_side = v["frames"][0]["side_data_list"].to_string();
     assert!(frame_side.contains("Stereo 3D"), "{frame_side}");
     let o = std::process::Command::new("ffmpeg")
-        .args(["-hide_banner", "-i"])
+        .args(["-v", "error", "-i"])
         .arg(&mp4)
-        .args(["-vf", "showinfo", "-frames:v", "1", "-f", "null", "-"])
+        .args(["-c:v", "copy", "-bsf:v", "h264_mp4toannexb", "-frames:v", "1"])
+        .args(["-f", "h264", "-"])
         .output()
         .unwrap();
-    let info = String::from_utf8_lossy(&o.stderr);
-    assert!(info.contains("Stereo 3D: type - side by side"), "{info}");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // ITU-T H.264 D.2.26: type 3 is side by side; content interpretation 1 puts the left view
+    // in frame 0 (the left half).
+    assert_eq!(frame_packing(&o.stdout), Some((3, 1)));
+}
+
+/// The first frame-packing arrangement SEI (payload type 45) of an H.264 Annex B stream: its
+/// `frame_packing_arrangement_type` and `content_interpretation_type` (ITU-T H.264 D.1.26).
+fn frame_packing(stream: &[u8]) -> Option<(u32, u32)> {
+    // NAL units between start codes; SEI NAL units (type 6) without emulation prevention.
+    let starts: Vec<usize> = (0..stream.len().saturating_sub(3))
+        .filter(|&i| stream[i..i + 3] == [0, 0, 1])
+        .map(|i| i + 3)
+        .collect();
+    for (k, &start) in starts.iter().enumerate() {
+        let end = starts.get(k + 1).map_or(stream.len(), |&next| next - 3);
+        let nal = &stream[start..end];
+        if nal.first().map(|b| b & 0x1f) != Some(6) {
+            continue;
+        }
+        let mut rbsp = Vec::new();
+        for (i, &b) in nal[1..].iter().enumerate() {
+            if b == 3 && i >= 2 && rbsp.ends_with(&[0, 0]) {
+                continue;
+            }
+            rbsp.push(b);
+        }
+        // SEI messages: payload type and size as runs of 0xff plus a last byte.
+        let mut at = 0;
+        while at + 2 < rbsp.len() {
+            let mut read = || {
+                let mut v = 0u32;
+                while rbsp.get(at) == Some(&0xff) {
+                    v += 255;
+                    at += 1;
+                }
+                v += *rbsp.get(at)? as u32;
+                at += 1;
+                Some(v)
+            };
+            let (kind, size) = (read()?, read()? as usize);
+            if kind == 45 {
+                let mut bits = Bits {
+                    bytes: rbsp.get(at..at + size)?,
+                    at: 0,
+                };
+                let _id = bits.exp_golomb()?;
+                if bits.take(1)? == 1 {
+                    return None;
+                }
+                let layout = bits.take(7)?;
+                let _quincunx = bits.take(1)?;
+                return Some((layout, bits.take(6)?));
+            }
+            at += size;
+        }
+    }
+    None
+}
+
+/// A reader of bits, most significant first.
+struct Bits<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Bits<'_> {
+    fn take(&mut self, n: usize) -> Option<u32> {
+        let mut v = 0;
+        for _ in 0..n {
+            let byte = self.bytes.get(self.at / 8)?;
+            v = v << 1 | ((byte >> (7 - self.at % 8)) & 1) as u32;
+            self.at += 1;
+        }
+        Some(v)
+    }
+
+    /// ue(v): leading zeros, a one, then as many bits.
+    fn exp_golomb(&mut self) -> Option<u32> {
+        let mut zeros = 0;
+        while self.take(1)? == 0 {
+            zeros += 1;
+        }
+        Some((1 << zeros) - 1 + self.take(zeros)?)
+    }
 }
 
 #[test]
