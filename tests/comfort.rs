@@ -306,7 +306,14 @@ fn stereo_videos_are_reported_as_stereo_by_ffprobe_with_their_layout() {
     let o = std::process::Command::new("ffmpeg")
         .args(["-v", "error", "-i"])
         .arg(&mp4)
-        .args(["-c:v", "copy", "-bsf:v", "h264_mp4toannexb", "-frames:v", "1"])
+        .args([
+            "-c:v",
+            "copy",
+            "-bsf:v",
+            "h264_mp4toannexb",
+            "-frames:v",
+            "1",
+        ])
         .args(["-f", "h264", "-"])
         .output()
         .unwrap();

@@ -201,15 +201,35 @@ impl VideoEncoder {
             .map_err(|e| e.to_string())
             .and_then(|bytes| super::container::check_whole(&bytes, matroska));
         if let Err(why) = whole {
+            // Older ffmpeg (Debian 12's 5.1) exits 0 without a word when the disk fills: ask
+            // the disk, while the cut-off file still holds its space.
+            let full = disk_full_beside(&self.tmp).map_or(String::new(), |e| {
+                format!("; the disk it writes to is full: {e}")
+            });
             let _ = std::fs::remove_file(&self.tmp);
             return Err(Error::io(
                 &self.path,
-                std::io::Error::other(format!("ffmpeg exited 0 but wrote a broken video: {why}")),
+                std::io::Error::other(format!(
+                    "ffmpeg exited 0 but wrote a broken video: {why}{full}"
+                )),
             ));
         }
         std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
         Ok(Some(self.path.clone()))
     }
+}
+
+/// The error of writing (and syncing) a small file beside `path` when it is a full disk's;
+/// the file is removed either way.
+fn disk_full_beside(path: &Path) -> Option<std::io::Error> {
+    use std::io::Write;
+    let probe = path.with_file_name(format!(".stereotrace-space-probe-{}", std::process::id()));
+    let written = std::fs::File::create(&probe)
+        .and_then(|mut f| f.write_all(&[0u8; 65536]).and_then(|()| f.sync_all()));
+    let _ = std::fs::remove_file(&probe);
+    written
+        .err()
+        .filter(|e| e.kind() == std::io::ErrorKind::StorageFull)
 }
 
 impl Drop for VideoEncoder {
