@@ -2,7 +2,7 @@
 //! the cutoff do not exist for any ray, and shadow rays pass cut-outs and let `1 - a` through
 //! each BLEND surface. Scenes without MASK or BLEND materials skip all of it.
 
-use super::integrator::{Integrator, RayCounts, bump, offset_origin};
+use super::integrator::{Integrator, RayCounts, bump};
 use crate::accel::{Hit, Intersect, LANES, Ray};
 use crate::scene::light::{Light, LightKind};
 use crate::scene::material::AlphaMode;
@@ -41,20 +41,14 @@ impl<A: Intersect> Integrator<'_, A> {
             for (i, hit) in hits.iter_mut().enumerate() {
                 let Some(h) = *hit else { continue };
                 let ray = current[i];
-                if !self.scene.cut_out(&ray, &h) {
+                let Some(sh) = self.scene.cut_out(&ray, &h) else {
                     continue;
-                }
+                };
                 if crossing == MAX_CROSSINGS {
                     *hit = None;
                     continue;
                 }
-                let sh = self.scene.shading_point(&ray, &h);
-                let side = if sh.ng.dot(ray.dir) >= 0.0 {
-                    sh.ng
-                } else {
-                    -sh.ng
-                };
-                current[i] = Ray::new(offset_origin(sh.p, side), ray.dir);
+                current[i] = Ray::new(sh.origin_toward(ray.dir), ray.dir);
                 travelled[i] = h.t;
                 passed |= 1 << i;
                 (next[k], limits[k], lanes[k]) = (current[i], t_max[i] - h.t, i);
@@ -129,14 +123,18 @@ impl<A: Intersect> Integrator<'_, A> {
                 let Some(hit) = found[j] else { continue };
                 let material = self.scene.geometry.triangle_materials[hit.prim as usize];
                 let mat = &self.scene.materials[material as usize];
+                if mat.alpha == AlphaMode::Opaque {
+                    out[i] = 0.0;
+                    continue;
+                }
                 let sh = self.scene.shading_point(&ray, &hit);
-                let passes = match mat.alpha {
-                    AlphaMode::Mask { cutoff } => self.scene.base_color(mat, &sh).w < cutoff,
-                    AlphaMode::Blend => {
-                        out[i] *= 1.0 - self.scene.base_color(mat, &sh).w;
-                        out[i] > 0.0
-                    }
-                    AlphaMode::Opaque => false,
+                let a = self.scene.base_color(mat, &sh).w;
+                // MASK passes its cut-outs; BLEND (opaque blocked above) lets 1 - a through.
+                let passes = if let AlphaMode::Mask { cutoff } = mat.alpha {
+                    a < cutoff
+                } else {
+                    out[i] *= 1.0 - a;
+                    out[i] > 0.0
                 };
                 if !passes {
                     out[i] = 0.0;
@@ -144,12 +142,7 @@ impl<A: Intersect> Integrator<'_, A> {
                 }
                 // On from the far side of the crossing: to the light's position (spawn_ray_to)
                 // or, for a directional light, along the same direction without end.
-                let side = if sh.ng.dot(ray.dir) >= 0.0 {
-                    sh.ng
-                } else {
-                    -sh.ng
-                };
-                let origin = offset_origin(sh.p, side);
+                let origin = sh.origin_toward(ray.dir);
                 let dir = match light.kind {
                     LightKind::Directional => ray.dir,
                     LightKind::Point | LightKind::Spot { .. } => light.position - origin,

@@ -5,7 +5,7 @@
 //! alpha coverage (MASK hits that do not exist for any ray, BLEND surfaces over what lies behind).
 
 use super::shading::{self, ShadingModel, brdf, dielectric_fresnel, schlick};
-use super::surface::{SceneView, Surface};
+use super::surface::{SceneView, Shading, Surface};
 use crate::accel::{Hit, Intersect, LANES, Ray};
 use crate::scene::light::LightKind;
 use crate::scene::material::{AlphaMode, Material};
@@ -89,6 +89,19 @@ pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
         };
     }
     out
+}
+
+impl Shading {
+    /// Where a ray leaving the hit along `dir` starts: offset to the side of the surface it
+    /// leaves toward.
+    pub(super) fn origin_toward(&self, dir: Vec3) -> Vec3 {
+        let side = if self.ng.dot(dir) >= 0.0 {
+            self.ng
+        } else {
+            -self.ng
+        };
+        offset_origin(self.p, side)
+    }
 }
 
 /// Shadow rays stop this fraction short of the light so a light sitting on a surface is not
@@ -323,13 +336,7 @@ impl<A: Intersect> Integrator<'_, A> {
             let mut k = 0;
             for (i, b) in bounces.iter().enumerate() {
                 if let (Some(b), Some(s)) = (b[kind], &surfaces[i]) {
-                    let sh = &s.sh;
-                    let side = if sh.ng.dot(b.dir) >= 0.0 {
-                        sh.ng
-                    } else {
-                        -sh.ng
-                    };
-                    (next[k], lanes[k]) = (Ray::new(offset_origin(sh.p, side), b.dir), i);
+                    (next[k], lanes[k]) = (Ray::new(s.sh.origin_toward(b.dir), b.dir), i);
                     k += 1;
                 }
             }

@@ -59,16 +59,16 @@ pub(super) struct Surface<'m> {
 }
 
 impl<A: Intersect> SceneView<'_, A> {
-    /// Whether a hit is on a MASK surface where its coverage is below the cutoff.
-    pub(super) fn cut_out(&self, ray: &Ray, hit: &Hit) -> bool {
+    /// The hit's shading point when the hit is on a MASK surface where its coverage is below
+    /// the cutoff (a hit no ray sees), else `None`.
+    pub(super) fn cut_out(&self, ray: &Ray, hit: &Hit) -> Option<Shading> {
         let material = self.geometry.triangle_materials[hit.prim as usize];
         let mat = &self.materials[material as usize];
-        match mat.alpha {
-            AlphaMode::Mask { cutoff } => {
-                self.base_color(mat, &self.shading_point(ray, hit)).w < cutoff
-            }
-            _ => false,
-        }
+        let AlphaMode::Mask { cutoff } = mat.alpha else {
+            return None;
+        };
+        let sh = self.shading_point(ray, hit);
+        (self.base_color(mat, &sh).w < cutoff).then_some(sh)
     }
 
     /// The material's values at a hit (WHITTED-materials.md section 1): base colour, roughness
