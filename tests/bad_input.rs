@@ -60,14 +60,19 @@ impl Case {
         p
     }
 
-    /// Runs `render` and checks that it succeeds.
-    fn renders(&self, pipeline: &Path) {
-        let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+    /// Runs `render` of `pipeline` into the case's `out` folder.
+    fn render(&self, pipeline: &Path) -> std::process::Output {
+        Command::new(env!("CARGO_BIN_EXE_stereotrace"))
             .args(["render", "--quiet", "--out"])
             .arg(self.dir.join("out"))
             .arg(pipeline)
             .output()
-            .unwrap();
+            .unwrap()
+    }
+
+    /// Runs `render` and checks that it succeeds.
+    fn renders(&self, pipeline: &Path) {
+        let out = self.render(pipeline);
         assert!(
             out.status.success(),
             "{}",
@@ -77,12 +82,7 @@ impl Case {
 
     /// Runs `render` and checks the failure contract; returns stderr.
     fn fails(&self, pipeline: &Path, expected_in_message: &[&str]) -> String {
-        let out = Command::new(env!("CARGO_BIN_EXE_stereotrace"))
-            .args(["render", "--quiet", "--out"])
-            .arg(self.dir.join("out"))
-            .arg(pipeline)
-            .output()
-            .unwrap();
+        let out = self.render(pipeline);
         let stderr = String::from_utf8_lossy(&out.stderr).to_string();
         assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
