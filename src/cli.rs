@@ -146,6 +146,24 @@ pub enum Command {
     /// Speed measurements.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Print a shell completion script for bash, zsh, fish, elvish or powershell.
+    #[command(after_help = "Examples:\n  \
+        stereotrace completions bash > ~/.local/share/bash-completion/completions/stereotrace\n  \
+        stereotrace completions zsh > ~/.zfunc/_stereotrace          (with fpath+=~/.zfunc)\n  \
+        stereotrace completions fish > ~/.config/fish/completions/stereotrace.fish")]
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Write the man pages: stereotrace.1 and one page per command (stereotrace-render.1, ...).
+    #[command(after_help = "Examples:\n  \
+        stereotrace man --out ~/.local/share/man/man1 && man stereotrace-render")]
+    Man {
+        /// Folder the pages are written into.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+    },
     /// Describe a glTF scene.
     Info {
         /// The glTF scene (.gltf or .glb).

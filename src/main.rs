@@ -11,6 +11,7 @@ use stereotrace::pipeline::{
 use stereotrace::{Error, Result, compare, info, thread_pool};
 
 mod cli;
+mod manual;
 use cli::{BenchCommand, Cli, Command};
 
 /// Counts heap bytes so that `bench sweep` can report each combination's peak.
@@ -206,6 +207,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 "wrote {0}/results.csv, {0}/summary.csv, {0}/chart.svg and {0}/chart.png",
                 options.out_dir.display()
             );
+        }
+        Command::Completions { shell } => manual::completions(shell),
+        Command::Man { out } => {
+            for page in manual::man_pages(&out)? {
+                note!("wrote {}", page.display());
+            }
         }
         Command::Info {
             scene,

@@ -139,3 +139,68 @@ fn a_closed_pipe_ends_quietly_and_a_full_disk_is_an_error() {
         );
     }
 }
+
+/// Every command a user can type, from `--help`'s list (help itself aside).
+fn commands() -> Vec<String> {
+    let help = String::from_utf8_lossy(&stereotrace(&["--help"]).stdout).to_string();
+    let list = help
+        .split("Commands:")
+        .nth(1)
+        .and_then(|rest| rest.split("\n\n").next())
+        .expect("--help lists the commands")
+        .to_string();
+    let names: Vec<String> = list
+        .lines()
+        .filter_map(|l| l.split_whitespace().next().map(str::to_owned))
+        .filter(|n| n != "help")
+        .collect();
+    assert!(names.len() >= 8, "{names:?}");
+    names
+}
+
+/// Completion scripts for bash, zsh and fish name every command; bash's parses (`bash -n`).
+#[test]
+fn completions_for_bash_zsh_and_fish_name_every_command() {
+    let commands = commands();
+    for shell in ["bash", "zsh", "fish"] {
+        let o = stereotrace(&["completions", shell]);
+        assert!(o.status.success(), "{shell}");
+        let script = String::from_utf8_lossy(&o.stdout);
+        for c in &commands {
+            assert!(script.contains(c.as_str()), "{shell}: {c} missing");
+        }
+        if shell == "bash" {
+            let dir = scratch("completions");
+            let file = dir.join("stereotrace.bash");
+            std::fs::write(&file, &o.stdout).unwrap();
+            let check = Command::new("bash").arg("-n").arg(&file).output().unwrap();
+            assert!(
+                check.status.success(),
+                "{}",
+                String::from_utf8_lossy(&check.stderr)
+            );
+        }
+    }
+    assert_eq!(stereotrace(&["completions", "tcsh"]).status.code(), Some(2));
+}
+
+/// `man` writes a page for the tool and each command, with the arguments `--help` shows.
+#[test]
+fn man_pages_cover_the_tool_and_every_command() {
+    let dir = scratch("man");
+    let o = stereotrace(&["man", "--out", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for c in std::iter::once("stereotrace".to_string())
+        .chain(commands().iter().map(|c| format!("stereotrace-{c}")))
+    {
+        let page = std::fs::read_to_string(dir.join(format!("{c}.1")))
+            .unwrap_or_else(|e| panic!("{c}.1: {e}"));
+        assert!(
+            page.contains(".TH") && page.contains(".SH SYNOPSIS"),
+            "{c}.1"
+        );
+    }
+    let render = std::fs::read_to_string(dir.join("stereotrace-render.1")).unwrap();
+    assert!(render.contains("\\-\\-shard"), "{render}");
+    assert!(dir.join("stereotrace-bench-accel.1").is_file());
+}
