@@ -102,3 +102,53 @@ fn new_refuses_to_overwrite_and_prints_to_standard_output_without_a_file() {
     std::fs::write(&q, &o.stdout).unwrap();
     ok(&stereotrace(&["check".as_ref(), q.as_os_str()]));
 }
+
+/// Fox.glb's three clips (Survey, Walk, Run) drive the same joints: `new` plays the first and
+/// lists the others, its frame range is that clip's, and `check` of it says nothing about
+/// animations; with `animation = "all"` the clips play over each other and `check` warns. A
+/// file whose clips drive different nodes (InterpolationTest) keeps "all" without a warning.
+#[test]
+fn new_plays_one_of_clips_that_drive_the_same_nodes() {
+    let dir = scratch("new-fox");
+    let fox = data().join("scenes/Fox/Fox.glb");
+    let text = String::from_utf8(ok_stdout(&[fox.as_os_str()])).unwrap();
+    assert!(text.contains("\nanimation = \"Survey\"\n"), "{text}");
+    assert!(
+        text.contains("\"Walk\"") && text.contains("\"Run\""),
+        "{text}"
+    );
+    // Survey lasts 3.42 s: 82 frames at 24 fps.
+    assert!(text.contains("\nend = 82 "), "{text}");
+    let one = dir.join("one.toml");
+    std::fs::write(&one, &text).unwrap();
+    let checked = ok(&stereotrace(&["check".as_ref(), one.as_os_str()]));
+    assert!(!checked.contains("drive the same nodes"), "{checked}");
+    let all = dir.join("all.toml");
+    std::fs::write(
+        &all,
+        text.replace("\nanimation = \"Survey\"\n", "\nanimation = \"all\"\n"),
+    )
+    .unwrap();
+    let warned = ok(&stereotrace(&["check".as_ref(), all.as_os_str()]));
+    assert!(
+        warned.contains("\"Run\" over \"Walk\"") && warned.contains("drive the same nodes"),
+        "{warned}"
+    );
+
+    let clips = data().join("scenes/InterpolationTest/InterpolationTest.glb");
+    let text = String::from_utf8(ok_stdout(&[clips.as_os_str()])).unwrap();
+    assert!(text.contains("\nanimation = \"all\""), "{text}");
+    let p = dir.join("clips.toml");
+    std::fs::write(&p, &text).unwrap();
+    let checked = ok(&stereotrace(&["check".as_ref(), p.as_os_str()]));
+    assert!(!checked.contains("drive the same nodes"), "{checked}");
+}
+
+/// `new SCENE` to standard output, which must succeed.
+fn ok_stdout(scene: &[&std::ffi::OsStr]) -> Vec<u8> {
+    let mut args = vec!["new".as_ref()];
+    args.extend_from_slice(scene);
+    let o = stereotrace(&args);
+    ok(&o);
+    o.stdout
+}

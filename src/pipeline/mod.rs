@@ -50,7 +50,7 @@ pub use trace::{FrameStats, FrameTracer};
 use crate::error::{Error, Result};
 use crate::output::ffmpeg_available;
 use crate::render::{Rig, View};
-use crate::scene::{Animation, Scene};
+use crate::scene::{Animation, Scene, overlapping_animations};
 use edit::set_key;
 use location::{Invalid, invalid, locate};
 use std::fmt;
@@ -174,6 +174,9 @@ impl LoadedPipeline {
             ));
         }
         check_animation(&spec, &scene).map_err(at)?;
+        if matches!(&spec.scene.animation, Selector::Name(n) if n == "all") {
+            warn_overlapping(&scene, &mut warnings);
+        }
         check_named_nodes(&spec, &scene).map_err(at)?;
         if let Some(i) = spec.outputs.iter().position(|o| o.video().is_some())
             && !ffmpeg_available()
@@ -225,6 +228,29 @@ impl LoadedPipeline {
         } else {
             vec![View::LEFT, View::RIGHT]
         }
+    }
+}
+
+/// `animation = "all"` plays clips that drive the same nodes (a walk and a run): the later
+/// overwrites the earlier, which is rarely what a user means.
+fn warn_overlapping(scene: &Scene, warnings: &mut Vec<String>) {
+    let name = |i: usize| {
+        scene.animations[i]
+            .name
+            .as_ref()
+            .map_or(i.to_string(), |n| format!("{n:?}"))
+    };
+    let pairs: Vec<String> = overlapping_animations(&scene.animations)
+        .into_iter()
+        .map(|(a, b)| format!("{} over {}", name(b), name(a)))
+        .collect();
+    if !pairs.is_empty() {
+        warnings.push(format!(
+            "{}: animation = \"all\" plays clips that drive the same nodes, each later one over \
+             the earlier where they meet ({}); name one with [scene] animation",
+            scene.source.display(),
+            pairs.join(", ")
+        ));
     }
 }
 

@@ -5,7 +5,7 @@
 use super::head_light::distance_to_bounds;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
-use crate::scene::{Scene, framing_camera};
+use crate::scene::{Scene, framing_camera, overlapping_animations};
 use glam::Vec3;
 use std::fmt::Write;
 use std::io::Write as _;
@@ -83,9 +83,12 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
     );
     let centre = eye.distance((lo + hi) * 0.5).max(1e-3);
     let nearest = distance_to_bounds(eye, (lo, hi));
+    // Clips that drive the same nodes (a walk and a run) are alternatives: the first plays.
+    let alternatives = !overlapping_animations(&scene.animations).is_empty();
     let duration = scene
         .animations
         .iter()
+        .take(if alternatives { 1 } else { usize::MAX })
         .map(|a| a.summary().duration)
         .fold(0.0f32, f32::max);
     let end = (duration * FPS).round() as u32;
@@ -134,6 +137,17 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
         .collect();
     if names.is_empty() {
         t.push_str("animation = \"none\"   # the scene has no animation\n");
+    } else if alternatives {
+        let first = match &scene.animations[0].name {
+            Some(n) => format!("{n:?}"),
+            None => "0".into(),
+        };
+        let _ = writeln!(
+            t,
+            "# The clips drive the same nodes, so one plays (\"all\" would play them over each\n\
+             # other); by name or index: {names}, or \"none\".\nanimation = {first}",
+            names = names.join(", ")
+        );
     } else {
         let _ = writeln!(
             t,
@@ -170,7 +184,14 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
         t,
         "\n[frames]\nstart = 0\nend = {end}                 # inclusive{}\nfps = {FPS}",
         if end > 0 {
-            format!(": the longest animation, {duration:.2} s")
+            format!(
+                ": {}, {duration:.2} s",
+                if alternatives {
+                    "the animation"
+                } else {
+                    "the longest animation"
+                }
+            )
         } else {
             String::new()
         }

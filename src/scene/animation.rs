@@ -268,6 +268,32 @@ pub struct NodeOverrides {
     pub weights: Option<Vec<f32>>,
 }
 
+/// Pairs of animations (indices, earlier first) whose channels drive the same property of the
+/// same node: played together (`animation = "all"`), the later overwrites the earlier there,
+/// as a file's alternative clips (a walk, a run) do.
+pub fn overlapping_animations(animations: &[Animation]) -> Vec<(usize, usize)> {
+    let mut drivers: std::collections::BTreeMap<(usize, u8), Vec<usize>> = Default::default();
+    for (a, anim) in animations.iter().enumerate() {
+        for c in &anim.channels {
+            let list = drivers.entry((c.node, c.property as u8)).or_default();
+            if list.last() != Some(&a) {
+                list.push(a);
+            }
+        }
+    }
+    let mut pairs: Vec<(usize, usize)> = drivers
+        .values()
+        .flat_map(|list| {
+            list.iter()
+                .enumerate()
+                .flat_map(move |(k, &a)| list[k + 1..].iter().map(move |&b| (a, b)))
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
 /// Samples the given animations at `t` into per-node overrides (later channels win).
 pub fn sample(animations: &[&Animation], node_count: usize, t: f32) -> Vec<NodeOverrides> {
     let mut out = vec![NodeOverrides::default(); node_count];

@@ -12,7 +12,7 @@ mod mesh;
 pub mod motion;
 pub mod pose;
 
-pub use animation::Animation;
+pub use animation::{Animation, overlapping_animations};
 pub use camera::{CameraDef, framing_camera};
 pub use light::{Light, LightKind};
 pub use mesh::{Mesh, MorphTarget, Primitive};
