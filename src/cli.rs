@@ -21,7 +21,7 @@ use stereotrace::pipeline::{
       stereotrace render my.toml --frames 12    render frame 12 only\n  \
       stereotrace info model.glb                what the model holds\n  \
       stereotrace compare a.exr b.exr --fail 0.02 --diff err.png\n\n\
-      The README's Pipeline reference lists every key of a pipeline file."
+      docs/guide/pipeline.md lists every key of a pipeline file; `stereotrace man` writes the man pages."
 )]
 pub struct Cli {
     #[command(subcommand)]

@@ -201,3 +201,34 @@ fn the_checker_sees_imports_through_braces_and_super() {
         ["a", "a::b", "c"].iter().map(|s| s.to_string()).collect()
     );
 }
+
+/// ARCHITECTURE.md names every folder of `src/`, and every `src/` path it names exists.
+#[test]
+fn the_architecture_page_names_every_folder_and_only_what_exists() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let page = std::fs::read_to_string(root.join("ARCHITECTURE.md")).unwrap();
+    let folders: Vec<String> = std::fs::read_dir(root.join("src"))
+        .unwrap()
+        .flatten()
+        .filter(|e| e.path().is_dir())
+        .map(|e| format!("src/{}/", e.file_name().to_string_lossy()))
+        .collect();
+    assert!(folders.len() >= 8, "{folders:?}");
+    for f in &folders {
+        assert!(
+            page.contains(f.as_str()),
+            "ARCHITECTURE.md does not name {f}"
+        );
+    }
+    let named: Vec<&str> = page
+        .split(|c: char| c.is_whitespace() || "`(),;:".contains(c))
+        .filter(|w| w.starts_with("src/"))
+        .collect();
+    assert!(named.len() >= 10, "{named:?}");
+    for path in named {
+        assert!(
+            root.join(path.trim_end_matches('.')).exists(),
+            "ARCHITECTURE.md names {path}, which does not exist"
+        );
+    }
+}

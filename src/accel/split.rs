@@ -58,8 +58,8 @@ pub(super) struct Split {
 pub(super) const PARALLEL_THRESHOLD: usize = 4096;
 
 /// References the whole tree may hold, per triangle. Perfect splits copy a straddling triangle
-/// into both children; on ordinary meshes that gives 3-6 references per triangle (the README's
-/// ladder), but a pile of overlapping triangles (the same sprite placed a thousand times a
+/// into both children; on ordinary meshes that gives 3-6 references per triangle (the ladder of
+/// docs/bench/kdtree.md), but a pile of overlapping triangles (the same sprite placed a thousand times a
 /// millimetre apart) is split again and again and grew to 300 MB for 1,000 triangles and 8 GB
 /// for 5,000. Each node hands its budget to its children in proportion to their references and
 /// becomes a leaf when its split would hold more than its budget, so the tree holds at most

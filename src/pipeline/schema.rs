@@ -1,6 +1,6 @@
 //! The pipeline file's schema: serde structs whose defaults are the single source of every
-//! default the README documents. Unknown keys are errors; `Pipeline::parse` reports them (and
-//! every type error) at their line and column.
+//! default the guide documents (docs/guide/pipeline.md). Unknown keys are errors;
+//! `Pipeline::parse` reports them (and every type error) at their line and column.
 
 use super::location::line_column;
 use super::output_spec::OutputSpec;

@@ -1,6 +1,6 @@
 //! `stereotrace new SCENE`: a commented pipeline for a scene, with its cameras, animations and
 //! frame range filled in and every output kind present (all but one commented out), so that
-//! nobody writes a pipeline from the README by hand.
+//! nobody writes a pipeline from the guide by hand.
 
 use super::head_light::distance_to_bounds;
 use crate::error::{Error, Result};
@@ -102,8 +102,8 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
         t,
         "# A pipeline for {file_name}, written by `stereotrace new`. Render it with\n\
          #   stereotrace render THIS_FILE --out out\n\
-         # Paths in [scene] are relative to this file; output paths to --out. The README's\n\
-         # \"Pipeline reference\" lists every key; a key left out takes its default.\n"
+         # Paths in [scene] are relative to this file; output paths to --out. Every key is in\n\
+         # docs/guide/pipeline.md of stereotrace; a key left out takes its default.\n"
     );
     let _ = writeln!(t, "[scene]\npath = {scene_path:?}");
     match cameras.as_slice() {
@@ -161,7 +161,7 @@ pub fn starter_text(scene: &Scene, scene_path: &str) -> String {
          max_depth = 8            # mirror and glass recursion\n\
          shading = \"cook-torrance\"  # or \"phong\"\n\
          background = [0.05, 0.05, 0.06]\n\
-         # eye_reuse = \"off\"      # \"paired\" | \"reproject\" | \"reproject-radiance\" (README: Stereo reuse)\n\
+         # eye_reuse = \"off\"      # \"paired\" | \"reproject\" | \"reproject-radiance\" (docs/guide/stereo-reuse.md)\n\
          # threads = 0            # 0 = all cores"
     );
     if !lit {
