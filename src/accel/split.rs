@@ -59,12 +59,12 @@ pub(super) const PARALLEL_THRESHOLD: usize = 4096;
 
 /// References the whole tree may hold, per triangle. Perfect splits copy a straddling triangle
 /// into both children; on ordinary meshes that gives 3-6 references per triangle (the ladder of
-/// docs/bench/kdtree.md), but a pile of overlapping triangles (the same sprite placed a thousand times a
-/// millimetre apart) is split again and again and grew to 300 MB for 1,000 triangles and 8 GB
-/// for 5,000. Each node hands its budget to its children in proportion to their references and
-/// becomes a leaf when its split would hold more than its budget, so the tree holds at most
-/// this many references per triangle whatever the input, and the rule is the same on every
-/// thread count. Every clipping builder follows it (`binned.rs`, `sah.rs`, `build.rs`). 64 is over ten times what the ladder's meshes use, so they build as before.
+/// docs/bench/kdtree.md), but a pile of overlapping triangles (the same sprite placed a
+/// thousand times a millimetre apart) is split again and again and grew to 300 MB for 1,000
+/// triangles and 8 GB for 5,000. Each node hands its budget to its children in proportion to
+/// their references and becomes a leaf when its split would hold more than its budget, so the
+/// tree holds at most this many references per triangle whatever the input, and the rule is the
+/// same on every thread count. Every clipping builder follows it (`binned.rs`, `sah.rs`, `build.rs`). 64 is over ten times what the ladder's meshes use, so they build as before.
 pub(super) const REFERENCE_BUDGET: f64 = 64.0;
 
 /// The children's budgets, in proportion to their references, or `None` when the two children

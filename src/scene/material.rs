@@ -78,24 +78,6 @@ impl Default for Material {
 }
 
 impl Material {
-    /// The texture slots the material samples, by their glTF names.
-    pub fn texture_slots(&self) -> impl Iterator<Item = (&'static str, &TextureRef)> {
-        [
-            ("baseColorTexture", self.base_color_texture.as_ref()),
-            (
-                "metallicRoughnessTexture",
-                self.metallic_roughness_texture.as_ref(),
-            ),
-            (
-                "normalTexture",
-                self.normal_texture.as_ref().map(|n| &n.texture),
-            ),
-            ("emissiveTexture", self.emissive_texture.as_ref()),
-        ]
-        .into_iter()
-        .filter_map(|(name, slot)| slot.map(|s| (name, s)))
-    }
-
     /// Whether the material needs the texture coordinates and colours of a hit before it knows
     /// whether the hit exists (MASK) or what lies behind it matters (BLEND).
     pub fn is_transparent(&self) -> bool {

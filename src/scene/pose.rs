@@ -197,7 +197,7 @@ fn append_mesh(
         // Morph deltas first (DESIGN.md: before skinning).
         let mut positions = prim.positions.clone();
         let mut normals = prim.normals.clone();
-        let mut prim_tangents = prim.tangents.clone().filter(|_| tangents);
+        let mut prim_tangents = prim.tangents.clone();
         for (target, &w) in prim.morph_targets.iter().zip(weights) {
             if w == 0.0 {
                 continue;
