@@ -5,9 +5,8 @@ use std::path::PathBuf;
 use stereotrace::accel::SplitMethod;
 use stereotrace::bench::{accel, sweep};
 use stereotrace::compare;
-use stereotrace::pipeline::{
-    MemoryLimit, ShardArg, parse_frame_range, parse_memory_limit, parse_shard,
-};
+use stereotrace::pipeline::parse_frame_range;
+use stereotrace::run::{MemoryLimit, ShardArg, parse_memory_limit, parse_shard};
 
 #[derive(Parser)]
 #[command(

@@ -14,6 +14,7 @@ pub mod output;
 mod paths;
 pub mod pipeline;
 pub mod render;
+pub mod run;
 pub mod scene;
 
 pub use error::{Error, Result};

@@ -5,9 +5,8 @@ use clap::Parser;
 use std::io::IsTerminal;
 use std::process::ExitCode;
 use stereotrace::bench::{accel, memory, sweep};
-use stereotrace::pipeline::{
-    Bytes, LoadedPipeline, MemoryEstimate, RunOptions, assemble, depth_check, memory_limit,
-};
+use stereotrace::pipeline::LoadedPipeline;
+use stereotrace::run::{Bytes, MemoryEstimate, RunOptions, assemble, depth_check, memory_limit};
 use stereotrace::{Error, Result, compare, info, thread_pool};
 
 mod cli;
@@ -101,7 +100,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 shard,
                 resume,
             };
-            let summary = stereotrace::pipeline::run(&p, &opts)?;
+            let summary = stereotrace::run::run(&p, &opts)?;
             if !quiet {
                 note!("{summary}");
             } else if let Some(w) = summary.depth.warning() {

@@ -9,7 +9,7 @@ use common::{data, scratch};
 use stereotrace::compare::{Planes, Thresholds, Verdict, compare};
 use stereotrace::output::exr::{read_view_planes, read_views};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, run};
+use stereotrace::run::{RunOptions, run};
 
 #[test]
 fn every_animated_reference_frame_matches() {

@@ -149,7 +149,7 @@ fn a_frame_rendered_alone_equals_the_same_frame_inside_a_range() {
     .unwrap();
     let p = stereotrace::pipeline::LoadedPipeline::load(&pipeline).unwrap();
     let run = |frames, out: &str| {
-        let opts = stereotrace::pipeline::run::RunOptions {
+        let opts = stereotrace::run::RunOptions {
             frames,
             threads: None,
             out_dir: dir.join(out),
@@ -157,7 +157,7 @@ fn a_frame_rendered_alone_equals_the_same_frame_inside_a_range() {
             shard: None,
             resume: false,
         };
-        stereotrace::pipeline::run::run(&p, &opts).unwrap();
+        stereotrace::run::run(&p, &opts).unwrap();
         std::fs::read(dir.join(out).join("f_0007.exr")).unwrap()
     };
     let range = run(None, "range");

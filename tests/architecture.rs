@@ -1,6 +1,7 @@
 //! The shape DESIGN.md asks of the code, checked on the source itself so that it stays true:
-//! small files, a thin `main.rs`, no module that imports from a module importing it back, and
-//! `pipeline/` reaching the other folders only through their front doors (`mod.rs`).
+//! small files, a thin `main.rs`, no module that imports from a module importing it back,
+//! `pipeline/` and `run/` reaching the other folders only through their front doors (`mod.rs`),
+//! and the pipeline file never importing the run.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -168,21 +169,42 @@ fn no_module_imports_from_a_module_that_imports_it_back() {
 }
 
 #[test]
-fn pipeline_reaches_other_folders_only_through_their_front_doors() {
+fn pipeline_and_run_reach_other_folders_only_through_their_front_doors() {
     let mods = modules();
     let mut back_doors = Vec::new();
-    for (m, p) in mods.iter().filter(|(m, _)| m.starts_with("pipeline")) {
+    for (m, p) in &mods {
+        let own = m.split("::").next().unwrap_or("");
+        if !["pipeline", "run"].contains(&own) {
+            continue;
+        }
         for path in paths_named(&code(p)) {
             let Some(d) = resolve(m, &path, &mods) else {
                 continue;
             };
             let top = d.split("::").next().unwrap_or("");
-            if ["scene", "accel", "render", "output"].contains(&top) && d.contains("::") {
+            let folders = ["scene", "accel", "render", "output", "pipeline", "run"];
+            if top != own && folders.contains(&top) && d.contains("::") {
                 back_doors.push(format!("{m} uses {path}"));
             }
         }
     }
     assert!(back_doors.is_empty(), "{back_doors:#?}");
+}
+
+/// The pipeline file is what a user asks; the run is how frames are made of it. The file side
+/// never depends on the run (`check`, `new` and `info` need no frame loop).
+#[test]
+fn the_pipeline_file_never_imports_the_run() {
+    let mods = modules();
+    let mut uses = Vec::new();
+    for (m, p) in mods.iter().filter(|(m, _)| m.starts_with("pipeline")) {
+        for path in paths_named(&code(p)) {
+            if resolve(m, &path, &mods).is_some_and(|d| d == "run" || d.starts_with("run::")) {
+                uses.push(format!("{m} uses {path}"));
+            }
+        }
+    }
+    assert!(uses.is_empty(), "{uses:#?}");
 }
 
 #[test]

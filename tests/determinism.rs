@@ -4,7 +4,7 @@ mod common;
 
 use common::{repo, scratch};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, run};
+use stereotrace::run::{RunOptions, run};
 
 fn render_with(threads: usize) -> Vec<u8> {
     let p = LoadedPipeline::load(&repo().join("pipelines/default.toml")).unwrap();

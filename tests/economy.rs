@@ -5,7 +5,7 @@
 mod common;
 use common::{repo, scratch};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, RunSummary, run};
+use stereotrace::run::{RunOptions, RunSummary, run};
 use stereotrace::scene::Scene;
 
 fn render(name: &str, scene: &str, extra: &str) -> (std::path::PathBuf, RunSummary) {

@@ -6,8 +6,8 @@ mod common;
 use common::{reference_dirs, reference_pipeline, repo, scratch};
 use std::path::Path;
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, run};
 use stereotrace::render::EyeReuse;
+use stereotrace::run::{RunOptions, run};
 
 /// The EXR bytes of `pipeline` rendered with `eye_reuse` set as given.
 fn render(pipeline: &Path, eye_reuse: &str, threads: usize, name: &str) -> Vec<u8> {

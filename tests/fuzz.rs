@@ -13,8 +13,9 @@ use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
-use stereotrace::pipeline::{FrameTracer, LoadedPipeline};
+use stereotrace::pipeline::LoadedPipeline;
 use stereotrace::render::View;
+use stereotrace::run::FrameTracer;
 
 /// glTF JSON files of the test data, each with the files it references (materials_public:
 /// every material input, with its textures beside it).

@@ -8,7 +8,7 @@ mod common;
 use common::{repo, scratch};
 use stereotrace::compare::{Thresholds, Verdict, compare_files};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::run;
+use stereotrace::run::run;
 
 #[test]
 fn whitted_clip_matches_its_stored_frames() {

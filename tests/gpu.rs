@@ -623,7 +623,7 @@ mod on_gpu {
         use stereotrace::compare::{Planes, Thresholds, Verdict, compare};
         use stereotrace::output::exr::read_views;
         use stereotrace::pipeline::LoadedPipeline;
-        use stereotrace::pipeline::run::run;
+        use stereotrace::run::run;
         if gpu().is_none() {
             return;
         }
@@ -733,7 +733,8 @@ mod on_gpu {
     /// refitted boxes every frame, and under `rebuild` a tree every frame.
     #[test]
     fn frames_upload_only_what_changed() {
-        use stereotrace::pipeline::{FrameTracer, LoadedPipeline};
+        use stereotrace::pipeline::LoadedPipeline;
+        use stereotrace::run::FrameTracer;
         if gpu().is_none() {
             return;
         }

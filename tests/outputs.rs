@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Command;
 use stereotrace::output::anaglyph::{Method, anaglyph_srgb8};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, RunSummary, run};
+use stereotrace::run::{RunOptions, RunSummary, run};
 
 fn render(name: &str, outputs: &str) -> (std::path::PathBuf, RunSummary) {
     let dir = scratch(name);

@@ -14,7 +14,7 @@ use stereotrace::compare::{Comparison, Planes, Thresholds, Verdict, compare};
 use stereotrace::output::Image;
 use stereotrace::output::exr::{read_view_planes, read_views};
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, run};
+use stereotrace::run::{RunOptions, run};
 
 /// The two approximate modes: hits reused, and hits with the radiance of rough surfaces.
 const MODES: [&str; 2] = ["reproject", "reproject-radiance"];

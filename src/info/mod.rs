@@ -7,7 +7,7 @@ pub use materials::{MaterialInputs, material_inputs};
 use crate::accel::TreeStats;
 use crate::accel::{BuildParams, KdTree, SplitMethod};
 use crate::error::{Error, Result};
-use crate::pipeline::{BYTES_PER_TRIANGLE, Bytes};
+use crate::run::{BYTES_PER_TRIANGLE, Bytes};
 use crate::scene::Scene;
 use crate::scene::animation::AnimationSummary;
 use crate::scene::light::LightKind;

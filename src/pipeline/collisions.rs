@@ -5,7 +5,7 @@
 
 use super::LoadedPipeline;
 use super::location::{Invalid, Key, invalid};
-use super::outputs::SEQUENCE_FRAMES;
+use super::output_spec::SEQUENCE_FRAMES;
 use super::schema::Pipeline;
 use super::template::PathTemplate;
 use crate::error::{Error, Result};
@@ -20,7 +20,7 @@ use std::path::{Component, Path, PathBuf};
 const FRAMES_LISTED: u32 = 10_000;
 
 /// One file an output writes: its path relative to `--out`, normalised, and the key naming it.
-pub(super) struct Written {
+pub struct Written {
     pub path: String,
     output: usize,
     key: &'static str,
@@ -42,12 +42,7 @@ fn normalise(path: &str) -> String {
 }
 
 /// Every file the outputs write over the frames `start..=end`.
-pub(super) fn written(
-    p: &Pipeline,
-    templates: &[PathTemplate],
-    start: u32,
-    end: u32,
-) -> Vec<Written> {
+pub fn written(p: &Pipeline, templates: &[PathTemplate], start: u32, end: u32) -> Vec<Written> {
     let eyes: &[&str] = if p.stereo.rig == Rig::Mono {
         &["center"]
     } else {
@@ -228,7 +223,7 @@ fn resolved(path: &Path) -> PathBuf {
 
 /// Refuses a run whose outputs (for `start..=end`, under `out_dir`) would overwrite its
 /// pipeline, its scene file or a buffer or image file of the scene.
-pub(super) fn check_inputs_untouched(
+pub fn check_inputs_untouched(
     p: &LoadedPipeline,
     out_dir: &Path,
     start: u32,

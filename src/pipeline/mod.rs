@@ -1,51 +1,29 @@
 //! Pipeline files: what a user asks a render to do. `schema` (the TOML structs and their
 //! defaults), `output_spec` (every output kind's keys and facts), `location` (key paths to line
-//! and column), `validate` (the rules), `edit` (setting keys by path for `bench sweep`),
-//! `template` (output paths), then the frame loop: `run` drives it, `trace` traces one frame,
-//! `outputs` writes what each output makes of it. A render farm splits the range (`shard`),
-//! records each finished frame (`manifest`) and joins the shards' work (`assemble`).
-//! `LoadedPipeline` is the front door: a file read, checked and with its scene loaded.
+//! and column), `validate` (the rules), `collisions` (outputs that would overwrite each other or
+//! an input), `edit` (setting keys by path for `bench sweep`), `template` (output paths) and
+//! `starter` (the commented pipeline `new` writes for a scene). How frames are made from a
+//! pipeline is `run/`. `LoadedPipeline` is the front door: a file read, checked and with its
+//! scene loaded.
 
-mod assemble;
 mod collisions;
-mod depth_check;
 mod edit;
-mod frame_log;
-mod head_light;
-mod interrupt;
 mod location;
-mod manifest;
-mod memory;
 mod output_spec;
-mod outputs;
-mod rig_plan;
-pub mod run;
 mod schema;
-mod shard;
 mod starter;
 mod template;
-mod trace;
 mod validate;
 
-pub use assemble::{Assembled, assemble};
-pub use depth_check::{DepthReport, depth_check};
-pub use frame_log::FRAME_LOG_COLUMNS;
+pub use collisions::{Written, check_inputs_untouched, written};
 pub use location::{Key, line_column};
-pub use memory::{
-    BYTES_PER_TRIANGLE, Bytes, MemoryEstimate, MemoryLimit, memory_limit, parse_memory_limit,
-};
-pub use output_spec::{ExrViews, OutputSpec, PairLayout};
-pub use outputs::StereoFrame;
-pub use rig_plan::{DepthSummary, FrameProbe, FrameRig, RigPlanner};
-pub use run::{RunOptions, RunSummary, run};
+pub use output_spec::{ExrViews, OutputSpec, PairLayout, SEQUENCE_FRAMES};
 pub use schema::{
     AccelSection, FramesSection, Metres, Pipeline, RenderSection, SceneSection, Selector,
     StereoSection,
 };
-pub use shard::{Shard, ShardArg, parse_shard};
 pub use starter::new_pipeline;
 pub use template::PathTemplate;
-pub use trace::{FrameStats, FrameTracer};
 
 use crate::error::{Error, Result};
 use crate::output::ffmpeg_available;

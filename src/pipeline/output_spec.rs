@@ -1,6 +1,6 @@
 //! The `[[output]]` tables: every output kind's keys and defaults, and every fact about a kind
 //! the rest of the pipeline asks (its path, display transform, video, the views it needs, its
-//! own validation rules) in one place. How a kind turns frames into files is `outputs.rs`.
+//! own validation rules) in one place. How a kind turns frames into files is `run/outputs.rs`.
 
 use super::template::PathTemplate;
 use crate::output::{
@@ -10,6 +10,10 @@ use crate::output::{
 use crate::render::{Eye, View};
 use serde::Deserialize;
 use std::path::Path;
+
+/// The folder under `--out` where a render keeps the 8-bit frames that pseudo-stereo and
+/// whole-range wobble GIFs are made from, so that `assemble` can make them from a farm's shards.
+pub const SEQUENCE_FRAMES: &str = "sequence-frames";
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq, Default)]
 #[serde(rename_all = "kebab-case")]

@@ -2,10 +2,9 @@
 //! frame range filled in and every output kind present (all but one commented out), so that
 //! nobody writes a pipeline from the guide by hand.
 
-use super::head_light::distance_to_bounds;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
-use crate::scene::{Scene, framing_camera, overlapping_animations};
+use crate::scene::{Scene, distance_to_bounds, framing_camera, overlapping_animations};
 use glam::Vec3;
 use std::fmt::Write;
 use std::io::Write as _;

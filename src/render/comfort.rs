@@ -1,6 +1,6 @@
 //! Stereo comfort: screen parallax from depth, the depth budget a frame is held to, the rig the
 //! budget allows, and floating windows. Pure arithmetic over a `DepthProbe`; which frames feed a
-//! smoothed choice is `pipeline/rig_plan.rs`.
+//! smoothed choice is `run/rig_plan.rs`.
 //!
 //! Parallax is right-eye x minus left-eye x in pixels (WHITTED.md section 2): a point at depth Z
 //! has `W/2 * interaxial * (1/c - 1/Z) / tan_x`, positive (uncrossed, behind the screen) past the

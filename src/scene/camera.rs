@@ -48,6 +48,15 @@ pub fn look_rotation(forward: Vec3) -> Quat {
     Quat::from_mat3(&glam::Mat3::from_cols(x, y, -f))
 }
 
+/// The distance from `point` to the nearest point of the box `bounds`, or to its centre when
+/// `point` is inside it.
+pub fn distance_to_bounds(point: Vec3, (lo, hi): (Vec3, Vec3)) -> f32 {
+    match point.distance(point.clamp(lo, hi)) {
+        d if d > 0.0 => d,
+        _ => point.distance((lo + hi) * 0.5),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

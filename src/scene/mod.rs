@@ -13,7 +13,7 @@ pub mod motion;
 pub mod pose;
 
 pub use animation::{Animation, overlapping_animations};
-pub use camera::{CameraDef, framing_camera};
+pub use camera::{CameraDef, distance_to_bounds, framing_camera};
 pub use light::{Light, LightKind};
 pub use mesh::{Mesh, MorphTarget, Primitive};
 pub use pose::PosedScene;

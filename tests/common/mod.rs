@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use stereotrace::output::image::Image;
 use stereotrace::pipeline::LoadedPipeline;
-use stereotrace::pipeline::run::{RunOptions, run};
+use stereotrace::run::{RunOptions, run};
 
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -18,8 +18,9 @@ use super::{median, memory};
 use crate::compare::{Planes, Thresholds, compare};
 use crate::error::{Error, Result};
 use crate::output::Image;
-use crate::pipeline::{FrameStats, FrameTracer, LoadedPipeline, parse_frame_range};
+use crate::pipeline::{LoadedPipeline, parse_frame_range};
 use crate::render::{EyeReuse, View};
+use crate::run::{FrameStats, FrameTracer};
 use results::write_files;
 use std::path::PathBuf;
 

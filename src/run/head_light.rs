@@ -1,17 +1,8 @@
 //! The light a scene without lights gets: a point light at the rig's centre, bright enough to
 //! show the scene and dim enough that no white surface clips.
 
-use crate::scene::{Light, LightKind};
+use crate::scene::{Light, LightKind, distance_to_bounds};
 use glam::{Mat4, Vec3};
-
-/// The distance from `point` to the nearest point of the box `bounds`, or to its centre when
-/// `point` is inside it.
-pub(super) fn distance_to_bounds(point: Vec3, (lo, hi): (Vec3, Vec3)) -> f32 {
-    match point.distance(point.clamp(lo, hi)) {
-        d if d > 0.0 => d,
-        _ => point.distance((lo + hi) * 0.5),
-    }
-}
 
 /// The radiance of a white diffuse surface facing the head-light at the nearest point of the
 /// scene's bounds: below 1 so that the nearest surfaces keep their shading instead of clipping

@@ -2,13 +2,13 @@
 //! structure up to date, and trace the requested views. `run` hands the result to the outputs;
 //! `bench sweep` times it and measures its error. Nothing here writes a file.
 
-use super::LoadedPipeline;
 use super::head_light::head_light;
 use super::outputs::StereoFrame;
 use super::rig_plan::{FrameProbe, FrameRig, RigPlanner};
 use crate::accel::{BuildParams, Intersect, LogRow, Updater};
 use crate::error::Result;
 use crate::output::Image;
+use crate::pipeline::LoadedPipeline;
 use crate::render::{
     Backend, Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ParallaxModel,
     ProbeCamera, RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample,

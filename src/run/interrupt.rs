@@ -3,11 +3,11 @@
 //! a second one exits at once. Temporaries that a killed run left behind are removed by the
 //! next run that writes into the same folders.
 
-use super::LoadedPipeline;
-use super::collisions::written;
 use super::outputs::Writer;
 use crate::error::{Error, Result};
 use crate::output::host_id;
+use crate::pipeline::LoadedPipeline;
+use crate::pipeline::written;
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 use std::sync::atomic::{AtomicBool, Ordering};

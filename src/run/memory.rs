@@ -7,9 +7,9 @@
 //! The constants are peak resident sizes measured on the release build (2 threads), with a
 //! margin; they are upper estimates of the common case, not bounds.
 
-use super::LoadedPipeline;
-use super::run::views_needed;
+use super::frame_loop::views_needed;
 use crate::error::{Error, Result};
+use crate::pipeline::LoadedPipeline;
 use crate::render::EyeReuse;
 use std::fmt;
 use std::path::Path;

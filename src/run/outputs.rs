@@ -3,15 +3,15 @@
 //! wobble GIF's frames, a video stream) in a `Sequence` and finish at the end of the range. The
 //! image work itself lives in `output/`; this module only routes frames and paths.
 
-use super::LoadedPipeline;
-use super::output_spec::{ExrViews, OutputSpec, PairLayout};
-use super::template::PathTemplate;
 use crate::error::{Error, Result};
 use crate::output::{
     Display, Image, PseudoStereo, VideoEncoder, interlaced, make_anaglyph, pivot_shift,
     side_by_side, to_srgb8, top_bottom, wobble_schedule, write_gif, write_multiview, write_png,
     write_rgb8, write_single_view,
 };
+use crate::pipeline::LoadedPipeline;
+use crate::pipeline::{ExrViews, OutputSpec, PairLayout};
+use crate::pipeline::{PathTemplate, SEQUENCE_FRAMES};
 use crate::render::View;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -41,10 +41,6 @@ impl StereoFrame {
 
 /// An 8-bit sRGB frame: width, height and RGB bytes.
 pub type Rgb8 = (usize, usize, Vec<u8>);
-
-/// The folder under `--out` where a render keeps the 8-bit frames that pseudo-stereo and
-/// whole-range wobble GIFs are made from, so that `assemble` can make them from a farm's shards.
-pub const SEQUENCE_FRAMES: &str = "sequence-frames";
 
 /// What one output writes of each frame on its own: the files that depend on that frame alone.
 /// What needs the frames before it (a video, pseudo-stereo's delayed channels, a GIF over the

@@ -9,8 +9,8 @@
 //! shard (`manifest.jsonl` for a whole range), so workers on a shared file system never write
 //! the same file; reading takes the lines of every `manifest*.jsonl` in the folder.
 
-use super::LoadedPipeline;
 use crate::error::{Error, Result};
+use crate::pipeline::LoadedPipeline;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, BTreeSet, HashMap};

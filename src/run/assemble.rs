@@ -4,14 +4,14 @@
 //! (videos, pseudo-stereo frames, wobble GIFs over the range) from the 8-bit frames the shards
 //! wrote. The files come out byte-identical to a single run over the range.
 
-use super::LoadedPipeline;
-use super::collisions::check_inputs_untouched;
 use super::frame_log::{FRAME_LOG, FRAME_LOG_COLUMNS};
 use super::interrupt::{output_dirs, remove_stale_temporaries};
 use super::manifest::{self, Entry, MANIFEST, Manifest};
 use super::outputs::{Sequence, Writer};
 use crate::error::{Error, Result};
 use crate::output::{read_rgb8, write_csv};
+use crate::pipeline::LoadedPipeline;
+use crate::pipeline::check_inputs_untouched;
 use rayon::prelude::*;
 use std::fmt;
 use std::path::{Path, PathBuf};

@@ -2,8 +2,8 @@
 //! where the frame's time went. A plain run writes it at the end; a farm's shards keep their rows
 //! in the manifest and `assemble` merges them.
 
-use super::FrameStats;
 use super::rig_plan::FrameRig;
+use super::trace::FrameStats;
 use crate::render::View;
 
 /// The frame log every run writes beside the outputs.

@@ -12,7 +12,7 @@
 //! - floating window: likewise the mean of maxima, so a border is never narrower than the frame
 //!   needs.
 
-use super::schema::{Metres, StereoSection};
+use crate::pipeline::{Metres, StereoSection};
 use crate::render::{
     Budget, DepthProbe, DepthRange, FloatingWindow, ParallaxModel, ProbeCamera, VIEWER_EYES,
     auto_interaxial, window_need,

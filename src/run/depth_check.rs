@@ -2,10 +2,10 @@
 //! acceleration structure brought up to date, one closest-hit ray per probe pixel), without
 //! shading a pixel. The numbers are the ones a render logs in `frame-log.csv`.
 
-use super::LoadedPipeline;
 use super::rig_plan::{DepthSummary, FrameRig};
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
+use crate::pipeline::LoadedPipeline;
 use std::fmt;
 
 /// Each frame's rig and depth, and the run's summary.

@@ -4,9 +4,7 @@
 //! records them (see `manifest`); a farm run (`--shard`, `--resume`) leaves what needs the whole
 //! sequence to `assemble`, a plain run makes it as the frames come.
 
-use super::LoadedPipeline;
 use super::assemble::assemble;
-use super::collisions::check_inputs_untouched;
 use super::frame_log::{self, FRAME_LOG, FRAME_LOG_COLUMNS};
 use super::interrupt::{self, output_dirs};
 use super::manifest::{self, Entry, MANIFEST, Manifest};
@@ -16,6 +14,8 @@ use super::shard::{Shard, ShardArg};
 use super::trace::FrameTracer;
 use crate::error::{Error, Result};
 use crate::output::CsvStream;
+use crate::pipeline::LoadedPipeline;
+use crate::pipeline::check_inputs_untouched;
 use crate::render::{RayCounts, View, tile_count};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
