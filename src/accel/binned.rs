@@ -98,8 +98,9 @@ pub(super) fn build(
         max_depth,
         parallel_above,
     };
-    // The final arrays, reserved at the sizes the ladder's meshes reach (about 6 nodes and 4.3
-    // references per triangle), so they rarely grow by copying.
+    // The final arrays, reserved at the sizes the ladder's meshes reach with a traversal cost of
+    // 15 (about 6 nodes and 4.3 references per triangle; larger costs make fewer), so they
+    // rarely grow by copying.
     let mut out = Flat {
         nodes: Vec::with_capacity(6 * refs.len()),
         refs: Vec::with_capacity(5 * refs.len()),

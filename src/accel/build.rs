@@ -34,6 +34,7 @@ impl KdTree {
 
     fn build_with(triangles: Vec<[Vec3; 3]>, params: BuildParams, quadratic: bool) -> KdTree {
         let start = Instant::now();
+        let params = params.for_triangles(triangles.len());
         let items: Vec<Item> = triangles
             .iter()
             .enumerate()

@@ -15,17 +15,39 @@ pub enum SplitMethod {
     SahExact,
 }
 
-/// Build constants. Defaults: K_T = 15, K_I = 20 and an empty-space factor of 0.8 (a cost
-/// bonus of 0.2) as Wald & Havran (RT'06) give them and Mitsuba uses; the depth cap is pbrt-v3's
-/// `8 + 1.3 log2 N`, only a safety net since the SAH termination criterion ends the recursion.
+/// Build constants. Defaults: K_I = 20 and an empty-space factor of 0.8 (a cost bonus of 0.2)
+/// as Wald & Havran (RT'06) give them and Mitsuba uses; K_T = 15 (theirs) for the bounded tree
+/// and, for the clipped-reference kd-tree, by the mesh's size (`traversal_cost_for`, measured);
+/// the depth cap is pbrt-v3's `8 + 1.3 log2 N`, only a safety net since the SAH termination
+/// criterion ends the recursion.
 #[derive(Clone, Copy, Debug)]
 pub struct BuildParams {
     pub method: SplitMethod,
     pub traversal_cost: f32,
+    /// Whether the kd-tree build replaces `traversal_cost` by `traversal_cost_for` its triangle
+    /// count (the default); `false` keeps the value given (`bench accel --traversal-cost`).
+    pub traversal_by_size: bool,
     pub intersection_cost: f32,
     pub empty_bonus: f32,
     /// Center and median stop at this many triangles (they have no cost model).
     pub leaf_size: usize,
+}
+
+/// The SAH's traversal cost for a kd-tree over `triangles` triangles: what a step costs against
+/// a triangle test (K_I = 20) grows once the tree outgrows the caches, so larger meshes get
+/// larger leaves. Measured with `bench accel --traversal-cost` and whole renders, 2 threads:
+/// - up to 32k triangles, 15: the Whitted scenes (7,938) traced 6-8% slower with 25-60 in
+///   `pipelines/diffuse.toml`, no faster in `default.toml`;
+/// - up to 512k, 40: TransmissionTest (128,775) traced its frame in 8.9-9.0 s against 9.4-9.8 s
+///   with 15 and 9.0-9.3 with 60; BrainStem and StanfordBunny the same as with 15;
+/// - above, 60: on the 1M peer mesh four-ray packets ran 12.6 Mrays/s against 10.3 with 15 and
+///   11.9 with 40, single rays 8.5 against 7.9, and the build took 0.76 s against 1.39.
+pub fn traversal_cost_for(triangles: usize) -> f32 {
+    match triangles {
+        0..32_768 => 15.0,
+        32_768..524_288 => 40.0,
+        _ => 60.0,
+    }
 }
 
 impl Default for BuildParams {
@@ -33,6 +55,7 @@ impl Default for BuildParams {
         BuildParams {
             method: SplitMethod::Sah,
             traversal_cost: 15.0,
+            traversal_by_size: true,
             intersection_cost: 20.0,
             empty_bonus: 0.2,
             leaf_size: 4,
@@ -45,6 +68,20 @@ impl BuildParams {
         BuildParams {
             method,
             ..Default::default()
+        }
+    }
+
+    /// The constants a kd-tree over `triangles` triangles is built with: the traversal cost
+    /// set by the size unless a fixed one was asked for.
+    pub fn for_triangles(self, triangles: usize) -> Self {
+        BuildParams {
+            traversal_cost: if self.traversal_by_size {
+                traversal_cost_for(triangles)
+            } else {
+                self.traversal_cost
+            },
+            traversal_by_size: false,
+            ..self
         }
     }
 }

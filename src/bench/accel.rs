@@ -1,12 +1,13 @@
 //! `bench accel`: times kd-tree builds and ray throughput per split strategy on a ladder of meshes, with brute force (and, with the
 //! `baselines` cargo feature, the `bvh` crate) measured on the identical rays in the same run.
 
+pub use super::accel_options::{AccelBenchOptions, AccelMethod, Walk};
 pub use super::accel_table::{AccelRow, chart, csv_header, read_table};
 
 use super::accel_table::write_table;
 use super::median;
 use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
-use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, SplitMethod, WalkCounts};
+use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, WalkCounts};
 use crate::error::{Error, Result};
 use crate::render::Backend;
 use crate::scene::Scene;
@@ -14,106 +15,8 @@ use crate::scene::framing_camera;
 use crate::scene::pose;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-
-/// A method measured by `bench accel`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AccelMethod {
-    Split(SplitMethod),
-    BruteForce,
-    #[cfg(feature = "baselines")]
-    BvhCrate,
-}
-
-impl AccelMethod {
-    pub fn name(&self) -> &'static str {
-        match self {
-            AccelMethod::Split(SplitMethod::Sah) => "sah",
-            AccelMethod::Split(SplitMethod::SahExact) => "sah-exact",
-            AccelMethod::Split(SplitMethod::Center) => "center",
-            AccelMethod::Split(SplitMethod::Median) => "median",
-            AccelMethod::BruteForce => "brute-force",
-            #[cfg(feature = "baselines")]
-            AccelMethod::BvhCrate => "bvh-crate",
-        }
-    }
-}
-
-#[derive(Clone, Debug, clap::Args)]
-pub struct AccelBenchOptions {
-    /// glTF files, or generated:N for a generated mesh of about N triangles.
-    #[arg(required = true)]
-    pub scenes: Vec<String>,
-    /// Split strategies to measure.
-    #[arg(
-        long = "split",
-        value_name = "SPLIT",
-        value_enum,
-        value_delimiter = ',',
-        default_value = "center,median,sah"
-    )]
-    pub splits: Vec<SplitMethod>,
-    /// Runs per measurement; the median is reported.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
-    pub repeat: u32,
-    /// Times each ray set this many times per build (the median over all runs is reported):
-    /// tracing takes a fraction of a second, so on a shared machine more samples steady it.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
-    pub trace_repeat: u32,
-    /// How kd-tree rows trace: `single` (one ray at a time) and/or `packet` (coherent runs of
-    /// up to four consecutive rays together, `closest_hits`/`any_hits`: rows named
-    /// `METHOD+packets`). Both find bit-identical hits.
-    #[arg(
-        long = "walk",
-        value_enum,
-        value_delimiter = ',',
-        default_value = "single"
-    )]
-    pub walks: Vec<Walk>,
-    /// Where kd-tree rows trace: `cpu` and/or `gpu` (built with the `gpu` cargo feature: the same
-    /// tree walked on the GPU with a full stack, a short stack and kd-restart, rows
-    /// `METHOD+gpu-WALK` with the adapter in the `device` column).
-    #[arg(
-        long = "backend",
-        value_enum,
-        value_delimiter = ',',
-        default_value = "cpu"
-    )]
-    pub backends: Vec<Backend>,
-    /// Write the table as CSV.
-    #[arg(long)]
-    pub csv: Option<PathBuf>,
-    /// Replay primary rays from a file (u64 count, then 7 little-endian f32 per ray: origin,
-    /// direction, t_max) instead of the camera's.
-    #[arg(long)]
-    pub rays: Option<PathBuf>,
-    /// Replay shadow rays (any-hit) from a file in the same format.
-    #[arg(long)]
-    pub shadow_rays: Option<PathBuf>,
-    /// Camera rays per side of the square film.
-    #[arg(long, default_value_t = 512)]
-    pub film: u32,
-    /// Brute force runs only while triangles x rays stays below this.
-    #[arg(skip = 2e9)]
-    pub brute_force_budget: f64,
-    /// Write each scene's primary and shadow rays into this folder in the replay format
-    /// (`<scene>_primary.rays`, `<scene>_shadow.rays`), so other ray tracers can be timed on
-    /// identical rays.
-    #[arg(long)]
-    pub save_rays: Option<PathBuf>,
-    /// Also draw the table as a chart: CHART.svg and CHART.png (build time against trace time,
-    /// Pareto front per scene).
-    #[arg(long)]
-    pub chart: Option<PathBuf>,
-}
-
-/// How `bench accel` hands rays to a kd-tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Walk {
-    Single,
-    Packet,
-}
 
 /// A UV sphere of about `n` triangles with a deterministic bumpy radius, so the mesh is not a
 /// perfectly regular grid.
@@ -319,8 +222,15 @@ pub fn bench_accel(
             write_rays(&dir.join(format!("{name}_shadow.rays")), &shadow)?;
         }
         let mrays = |rays: usize, secs: f64| rays as f64 * 1e-6 / secs;
-        let mut methods: Vec<AccelMethod> =
-            opts.splits.iter().map(|&s| AccelMethod::Split(s)).collect();
+        let costs: Vec<Option<f32>> = match opts.traversal_costs.as_slice() {
+            [] => vec![None],
+            c => c.iter().copied().map(Some).collect(),
+        };
+        let mut methods: Vec<AccelMethod> = opts
+            .splits
+            .iter()
+            .flat_map(|&s| costs.iter().map(move |&kt| AccelMethod::Split(s, kt)))
+            .collect();
         #[cfg(feature = "baselines")]
         methods.push(AccelMethod::BvhCrate);
         if tris.len() as f64 * (primary.len() + shadow.len()) as f64 <= opts.brute_force_budget {
@@ -339,15 +249,15 @@ pub fn bench_accel(
             .transpose()?;
         for method in methods {
             let walks = match method {
-                AccelMethod::Split(_) if on_cpu => opts.walks.clone(),
-                AccelMethod::Split(_) => Vec::new(),
+                AccelMethod::Split(..) if on_cpu => opts.walks.clone(),
+                AccelMethod::Split(..) => Vec::new(),
                 _ => vec![Walk::Single],
             };
             #[cfg(feature = "gpu")]
             let mut gpu_runs = match (&gpu_bench, method) {
-                (Some(g), AccelMethod::Split(_)) => g.runs(&AccelRow {
+                (Some(g), AccelMethod::Split(..)) => g.runs(&AccelRow {
                     scene: name.clone(),
-                    method: method.name().into(),
+                    method: method.label(),
                     triangles: tris.len(),
                     threads,
                     ..Default::default()
@@ -360,8 +270,8 @@ pub fn bench_accel(
                     let row = AccelRow {
                         scene: name.clone(),
                         method: match w {
-                            Walk::Single => method.name().into(),
-                            Walk::Packet => format!("{}+packets", method.name()),
+                            Walk::Single => method.label(),
+                            Walk::Packet => format!("{}+packets", method.label()),
                         },
                         triangles: tris.len(),
                         threads,
@@ -380,8 +290,16 @@ pub fn bench_accel(
             for _ in 0..repeat {
                 let t = Instant::now();
                 let accel: Box<dyn Intersect> = match method {
-                    AccelMethod::Split(s) => {
-                        let tree = KdTree::build(tris.clone(), BuildParams::with_method(s));
+                    AccelMethod::Split(s, kt) => {
+                        let params = match kt {
+                            Some(kt) => BuildParams {
+                                traversal_cost: kt,
+                                traversal_by_size: false,
+                                ..BuildParams::with_method(s)
+                            },
+                            None => BuildParams::with_method(s),
+                        };
+                        let tree = KdTree::build(tris.clone(), params);
                         let st = tree.stats();
                         builds.push(tree.build_seconds);
                         for ((row, ..), &walk) in runs.iter_mut().zip(&walks) {

@@ -9,6 +9,7 @@
 pub mod accel;
 #[cfg(feature = "gpu")]
 mod accel_gpu;
+mod accel_options;
 mod accel_table;
 mod chart;
 pub mod memory;

@@ -1,0 +1,127 @@
+//! What `bench accel` is asked: the scenes, the methods, the walks and the rays, as command-line
+//! options.
+
+use crate::accel::SplitMethod;
+use crate::render::Backend;
+use std::path::PathBuf;
+
+/// A method measured by `bench accel`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AccelMethod {
+    /// A kd-tree by this split strategy, with this traversal cost K_T in its SAH (`None`: the
+    /// builders' rule, `traversal_cost_for`).
+    Split(SplitMethod, Option<f32>),
+    BruteForce,
+    #[cfg(feature = "baselines")]
+    BvhCrate,
+}
+
+impl AccelMethod {
+    pub fn name(&self) -> &'static str {
+        match self {
+            AccelMethod::Split(SplitMethod::Sah, _) => "sah",
+            AccelMethod::Split(SplitMethod::SahExact, _) => "sah-exact",
+            AccelMethod::Split(SplitMethod::Center, _) => "center",
+            AccelMethod::Split(SplitMethod::Median, _) => "median",
+            AccelMethod::BruteForce => "brute-force",
+            #[cfg(feature = "baselines")]
+            AccelMethod::BvhCrate => "bvh-crate",
+        }
+    }
+
+    /// The row's name: `name`, with `@ktK` where a traversal cost was given.
+    pub fn label(&self) -> String {
+        match self {
+            AccelMethod::Split(_, Some(kt)) => format!("{}@kt{kt}", self.name()),
+            _ => self.name().to_string(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct AccelBenchOptions {
+    /// glTF files, or generated:N for a generated mesh of about N triangles.
+    #[arg(required = true)]
+    pub scenes: Vec<String>,
+    /// Split strategies to measure.
+    #[arg(
+        long = "split",
+        value_name = "SPLIT",
+        value_enum,
+        value_delimiter = ',',
+        default_value = "center,median,sah"
+    )]
+    pub splits: Vec<SplitMethod>,
+    /// The SAH's traversal cost K_T for the kd-tree builds, one set of rows per value (named
+    /// `sah@ktK`), against the intersection cost K_I = 20: how the cost ratio shapes the tree and
+    /// what it does to build and trace times. Default: the builders' rule by mesh size.
+    #[arg(long = "traversal-cost", value_delimiter = ',', value_parser = parse_cost)]
+    pub traversal_costs: Vec<f32>,
+    /// Runs per measurement; the median is reported.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
+    /// Times each ray set this many times per build (the median over all runs is reported):
+    /// tracing takes a fraction of a second, so on a shared machine more samples steady it.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub trace_repeat: u32,
+    /// How kd-tree rows trace: `single` (one ray at a time) and/or `packet` (coherent runs of
+    /// up to four consecutive rays together, `closest_hits`/`any_hits`: rows named
+    /// `METHOD+packets`). Both find bit-identical hits.
+    #[arg(
+        long = "walk",
+        value_enum,
+        value_delimiter = ',',
+        default_value = "single"
+    )]
+    pub walks: Vec<Walk>,
+    /// Where kd-tree rows trace: `cpu` and/or `gpu` (built with the `gpu` cargo feature: the same
+    /// tree walked on the GPU with a full stack, a short stack and kd-restart, rows
+    /// `METHOD+gpu-WALK` with the adapter in the `device` column).
+    #[arg(
+        long = "backend",
+        value_enum,
+        value_delimiter = ',',
+        default_value = "cpu"
+    )]
+    pub backends: Vec<Backend>,
+    /// Write the table as CSV.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Replay primary rays from a file (u64 count, then 7 little-endian f32 per ray: origin,
+    /// direction, t_max) instead of the camera's.
+    #[arg(long)]
+    pub rays: Option<PathBuf>,
+    /// Replay shadow rays (any-hit) from a file in the same format.
+    #[arg(long)]
+    pub shadow_rays: Option<PathBuf>,
+    /// Camera rays per side of the square film.
+    #[arg(long, default_value_t = 512)]
+    pub film: u32,
+    /// Brute force runs only while triangles x rays stays below this.
+    #[arg(skip = 2e9)]
+    pub brute_force_budget: f64,
+    /// Write each scene's primary and shadow rays into this folder in the replay format
+    /// (`<scene>_primary.rays`, `<scene>_shadow.rays`), so other ray tracers can be timed on
+    /// identical rays.
+    #[arg(long)]
+    pub save_rays: Option<PathBuf>,
+    /// Also draw the table as a chart: CHART.svg and CHART.png (build time against trace time,
+    /// Pareto front per scene).
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
+}
+
+/// How `bench accel` hands rays to a kd-tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Walk {
+    Single,
+    Packet,
+}
+
+/// A cost for `--traversal-cost`: finite and positive.
+fn parse_cost(s: &str) -> std::result::Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive number")),
+    }
+}
