@@ -6,7 +6,9 @@ pub use super::accel_table::{AccelRow, chart, csv_header, read_table};
 
 use super::accel_table::write_table;
 use super::median;
-use super::rays::{TimedRay, camera_rays, read_rays, shadow_rays, write_rays};
+use super::rays::{
+    Eyes, TimedRay, camera_rays, read_rays, shadow_rays, stereo_camera_rays, write_rays,
+};
 use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, WalkCounts};
 use crate::error::{Error, Result};
 use crate::render::Backend;
@@ -208,9 +210,17 @@ pub fn bench_accel(
     for spec in &opts.scenes {
         let (name, tris, camera, yfov) = load(spec)?;
         let sah_tree = KdTree::build(tris.clone(), BuildParams::default());
-        let primary = match &opts.rays {
-            Some(p) => read_rays(p)?,
-            None => camera_rays(camera, yfov, opts.film),
+        let primary = match (&opts.rays, opts.eyes) {
+            (Some(p), _) => read_rays(p)?,
+            (None, Eyes::Center) => camera_rays(camera, yfov, opts.film),
+            (None, eyes) => {
+                let b = sah_tree.bounds();
+                let to_centre = (b.min + b.max) * 0.5 - camera.transform_point3(Vec3::ZERO);
+                let convergence = to_centre.length().max(1e-3);
+                // The stereographers' one-thirtieth rule for the interaxial distance.
+                let rig = (convergence / 30.0, convergence);
+                stereo_camera_rays(camera, yfov, opts.film, eyes, rig)
+            }
         };
         let shadow = match &opts.shadow_rays {
             Some(p) => read_rays(p)?,

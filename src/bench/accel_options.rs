@@ -1,6 +1,7 @@
 //! What `bench accel` is asked: the scenes, the methods, the walks and the rays, as command-line
 //! options.
 
+use super::rays::Eyes;
 use crate::accel::SplitMethod;
 use crate::render::Backend;
 use std::path::PathBuf;
@@ -97,6 +98,11 @@ pub struct AccelBenchOptions {
     /// Camera rays per side of the square film.
     #[arg(long, default_value_t = 512)]
     pub film: u32,
+    /// The camera rays' eyes: `center` (one pinhole), or the stereo ray set, `both` eyes of an
+    /// off-axis rig (interaxial a thirtieth of the convergence distance, the distance to the
+    /// mesh's centre) in the order paired tracing walks them, or its `left` eye alone.
+    #[arg(long, value_enum, default_value = "center")]
+    pub eyes: Eyes,
     /// Brute force runs only while triangles x rays stays below this.
     #[arg(skip = 2e9)]
     pub brute_force_budget: f64,

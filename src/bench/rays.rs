@@ -66,22 +66,78 @@ pub fn write_rays(path: &Path, rays: &[TimedRay]) -> Result<()> {
 
 /// Square pinhole film of `film` x `film` rays through pixel centres.
 pub fn camera_rays(world: Mat4, yfov: f32, film: u32) -> Vec<TimedRay> {
-    let t = (yfov * 0.5).tan();
-    let origin = world.transform_point3(Vec3::ZERO);
     (0..film * film)
-        .map(|i| {
-            let (x, y) = ((i % film) as f32 + 0.5, (i / film) as f32 + 0.5);
-            let d = Vec3::new(
-                (2.0 * x / film as f32 - 1.0) * t,
-                (1.0 - 2.0 * y / film as f32) * t,
-                -1.0,
-            );
-            (
-                Ray::new(origin, world.transform_vector3(d).normalize()),
-                f32::INFINITY,
-            )
-        })
+        .map(|i| eye_ray(world, yfov, film, (i % film, i / film), 0.0, 1.0))
         .collect()
+}
+
+/// Which eyes `bench accel` makes camera rays for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Eyes {
+    /// One pinhole at the camera.
+    #[default]
+    Center,
+    /// The left eye of the stereo rig alone (the baseline for `both`).
+    Left,
+    /// Both eyes of an off-axis rig over the same film, in the order `eye_reuse = "paired"`
+    /// traces them: two pixels of the left eye, then the same two of the right.
+    Both,
+}
+
+/// Camera rays of an off-axis stereo rig at the camera: eyes `interaxial` apart along the
+/// camera's x axis, their frusta sheared to meet on the plane `convergence` ahead.
+pub fn stereo_camera_rays(
+    world: Mat4,
+    yfov: f32,
+    film: u32,
+    eyes: Eyes,
+    (interaxial, convergence): (f32, f32),
+) -> Vec<TimedRay> {
+    let half = 0.5 * interaxial;
+    let mut rays = Vec::with_capacity(2 * (film * film) as usize);
+    for y in 0..film {
+        for x0 in (0..film).step_by(2) {
+            let pair = x0..(x0 + 2).min(film);
+            let sides: &[f32] = match eyes {
+                Eyes::Center => &[0.0],
+                Eyes::Left => &[-half],
+                Eyes::Both => &[-half, half],
+            };
+            for &side in sides {
+                for x in pair.clone() {
+                    rays.push(eye_ray(world, yfov, film, (x, y), side, convergence));
+                }
+            }
+        }
+    }
+    rays
+}
+
+/// The ray of pixel `(x, y)` from the eye `side` along the camera's x axis, through the point
+/// the centre camera's ray of that pixel meets at depth `convergence`.
+fn eye_ray(
+    world: Mat4,
+    yfov: f32,
+    film: u32,
+    (x, y): (u32, u32),
+    side: f32,
+    convergence: f32,
+) -> TimedRay {
+    let t = (yfov * 0.5).tan();
+    let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+    let on_plane = Vec3::new(
+        (2.0 * fx / film as f32 - 1.0) * t,
+        (1.0 - 2.0 * fy / film as f32) * t,
+        -1.0,
+    ) * convergence;
+    let eye = Vec3::new(side, 0.0, 0.0);
+    (
+        Ray::new(
+            world.transform_point3(eye),
+            world.transform_vector3(on_plane - eye).normalize(),
+        ),
+        f32::INFINITY,
+    )
 }
 
 /// Shadow rays from every primary hit toward a point light above and in front of the scene.
@@ -126,5 +182,41 @@ mod tests {
         std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
         assert!(read_rays(&path).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The stereo set: each pixel's two rays start `interaxial` apart and meet on the
+    /// convergence plane; groups of four are two left-eye pixels then the same two of the right,
+    /// the left set is the left halves, and the centre camera's rays are unchanged.
+    #[test]
+    fn stereo_rays_meet_on_the_convergence_plane_in_paired_order() {
+        let world = Mat4::from_translation(Vec3::new(1.0, 2.0, 3.0));
+        let (film, rig) = (6, (0.2, 4.0));
+        let both = stereo_camera_rays(world, 0.8, film, Eyes::Both, rig);
+        let left = stereo_camera_rays(world, 0.8, film, Eyes::Left, rig);
+        let center = stereo_camera_rays(world, 0.8, film, Eyes::Center, rig);
+        assert_eq!(both.len(), 2 * left.len());
+        assert_eq!(left.len(), (film * film) as usize);
+        for (k, group) in both.chunks(4).enumerate() {
+            for i in 0..2 {
+                let (l, r) = (group[i].0, group[i + 2].0);
+                assert_eq!(l.origin, left[2 * k + i].0.origin);
+                assert_eq!(l.dir, left[2 * k + i].0.dir);
+                assert!(((r.origin - l.origin).length() - 0.2).abs() < 1e-5);
+                // Both reach depth 4 (z = 3 - 4) at the same point.
+                let meet = |ray: Ray| ray.at((-1.0 - ray.origin.z) / ray.dir.z);
+                assert!((meet(l) - meet(r)).length() < 1e-4, "pixel group {k}");
+            }
+        }
+        let plain = camera_rays(world, 0.8, film);
+        let bits = |rays: &[TimedRay]| -> Vec<[u32; 6]> {
+            rays.iter()
+                .map(|(r, _)| {
+                    let [a, b, c] = r.origin.to_array().map(f32::to_bits);
+                    let [d, e, f] = r.dir.to_array().map(f32::to_bits);
+                    [a, b, c, d, e, f]
+                })
+                .collect()
+        };
+        assert_eq!(bits(&center), bits(&plain));
     }
 }
