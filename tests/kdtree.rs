@@ -393,3 +393,23 @@ fn a_pile_of_overlapping_copies_stays_within_the_reference_budget() {
         }
     }
 }
+
+/// Meshes past 32k and 512k triangles are built with larger traversal costs (fewer, fuller
+/// leaves: `accel/params.rs`); the fast build keeps its bounds against the exact one there too.
+#[test]
+fn larger_meshes_get_larger_traversal_costs_and_the_fast_build_keeps_its_bounds() {
+    for (n, cost) in [(40_000, 40.0), (540_000, 60.0)] {
+        let tris = stereotrace::bench::accel::generated_mesh(n);
+        let tree = KdTree::build(tris.clone(), BuildParams::default());
+        assert_eq!(tree.params.traversal_cost, cost, "{} triangles", tris.len());
+        fast_matches_exact(&format!("generated {n}"), &tris);
+        if n < 100_000 {
+            // The brute-force oracle on the fuller leaves.
+            let rays = rays_through(&tris, 1000, &mut Rng(5));
+            check(&format!("generated {n}"), tris, &rays);
+        }
+    }
+    let small = stereotrace::bench::accel::generated_mesh(20_000);
+    let tree = KdTree::build(small, BuildParams::default());
+    assert_eq!(tree.params.traversal_cost, 15.0);
+}
