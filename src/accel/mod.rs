@@ -22,6 +22,7 @@ mod packet;
 mod params;
 mod query;
 mod refit;
+mod refit_packet;
 mod sah;
 mod split;
 mod stats;

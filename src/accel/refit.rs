@@ -8,8 +8,9 @@
 //! the boxes live beside them.
 
 use super::aabb::Aabb;
+use super::packet::{Run, group};
 use super::params::BuildParams;
-use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit};
+use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit, walk_one};
 use super::tree::{KdTree, MAX_DEPTH};
 use super::{Hit, Intersect, Ray};
 use glam::Vec3;
@@ -172,6 +173,35 @@ impl LeafWalk for RefitTree {
     }
 }
 
+impl RefitTree {
+    /// The topology's nodes and leaf references, for the packet walk (`refit_packet.rs`).
+    pub(super) fn topology_arrays(&self) -> (&[super::Node], &[u32]) {
+        (&self.topology.nodes, &self.topology.prim_refs)
+    }
+
+    /// Walks `rays` in packets where consecutive rays share an octant, singly elsewhere;
+    /// `out(i, hit)`.
+    fn batch<const ANY: bool>(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        mut out: impl FnMut(usize, Option<Hit>),
+    ) {
+        assert_eq!(rays.len(), t_max.len(), "one limit per ray");
+        for run in group(rays) {
+            match run {
+                Run::Single(i) => out(i, walk_one::<ANY>(self, &rays[i], t_max[i], &mut NoTally)),
+                Run::Packet(a, b, oct) => {
+                    let hits = self.packet_walk_boxes::<ANY>(&rays[a..b], &t_max[a..b], oct);
+                    for (k, h) in hits.into_iter().take(b - a).enumerate() {
+                        out(a + k, h);
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl Intersect for RefitTree {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         closest_hit(self, ray, t_max, &mut NoTally)
@@ -180,6 +210,14 @@ impl Intersect for RefitTree {
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
         any_hit(self, ray, t_max, &mut NoTally)
     }
+
+    fn closest_hits(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<Hit>]) {
+        self.batch::<false>(rays, t_max, |i, h| hits[i] = h);
+    }
+
+    fn any_hits(&self, rays: &[Ray], t_max: &[f32], occluded: &mut [bool]) {
+        self.batch::<true>(rays, t_max, |i, h| occluded[i] = h.is_some());
+    }
 }
 
 #[cfg(test)]
@@ -187,6 +225,55 @@ mod tests {
     use super::super::{BruteForce, BuildParams};
     use super::*;
     use crate::accel::test_rng::Lcg;
+
+    /// Packets of coherent rays (a pinhole's fan, with rays of mixed octants and ray limits)
+    /// find the single walk's hits and occlusion on a refitted, deformed tree.
+    #[test]
+    fn packets_find_the_single_walk_hits() {
+        let mut rng = Lcg(17);
+        let rest: Vec<[Vec3; 3]> = (0..3000)
+            .map(|_| {
+                let c = rng.v(10.0);
+                [c, c + rng.v(1.0) - 0.5, c + rng.v(1.0) - 0.5]
+            })
+            .collect();
+        let topology = Arc::new(KdTree::build(rest.clone(), BuildParams::default()));
+        let moved: Vec<[Vec3; 3]> = rest
+            .iter()
+            .map(|t| t.map(|v| v + Vec3::new((v.y * 0.7).sin(), 0.0, (v.x * 0.5).cos())))
+            .collect();
+        let refit = RefitTree::refit(topology, moved);
+        let eye = Vec3::new(5.0, 5.0, -8.0);
+        let mut rays = Vec::new();
+        for y in 0..48 {
+            for x in 0..48 {
+                let d = Vec3::new(x as f32 / 48.0 - 0.5, y as f32 / 48.0 - 0.5, 1.0);
+                rays.push(Ray::new(eye, d));
+            }
+        }
+        for _ in 0..500 {
+            rays.push(Ray::new(rng.v(12.0) - 1.0, rng.v(2.0) - 1.0));
+        }
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 5 == 0 { 9.0 } else { f32::INFINITY })
+            .collect();
+        let mut hits = vec![None; rays.len()];
+        let mut occluded = vec![false; rays.len()];
+        refit.closest_hits(&rays, &t_max, &mut hits);
+        refit.any_hits(&rays, &t_max, &mut occluded);
+        let mut found = 0;
+        for (i, r) in rays.iter().enumerate() {
+            let single = refit.closest_hit(r, t_max[i]);
+            let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits()));
+            assert_eq!(bits(hits[i]), bits(single), "ray {i}");
+            assert_eq!(occluded[i], refit.any_hit(r, t_max[i]), "ray {i}");
+            found += single.is_some() as usize;
+        }
+        assert!(
+            found > rays.len() / 4,
+            "the rays must hit something: {found}"
+        );
+    }
 
     #[test]
     fn refitted_tree_finds_the_brute_force_hits_after_large_deformations() {
