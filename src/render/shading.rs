@@ -46,6 +46,7 @@ pub struct SurfacePoint {
 
 /// BRDF value (no cosine) for light direction `l`, view direction `v`, shading normal `n`, all unit
 /// and on the same side (the caller checks n.l > 0 and n.v > 0).
+#[inline]
 pub fn brdf(model: ShadingModel, s: &SurfacePoint, n: Vec3, l: Vec3, v: Vec3) -> Vec3 {
     match model {
         ShadingModel::CookTorrance => gltf_brdf(s, n, l, v),
