@@ -42,13 +42,14 @@ pub enum UpdateMode {
 
 /// Under `auto`, a deforming mesh sampled more than this many times per triangle each frame
 /// (camera samples of both eyes) is rebuilt as a kd-tree instead of refitted. Where rebuilding
-/// starts to pay, measured (update and tracing per frame, rebuild against refit): BrainStem
-/// (61,666 triangles, 320x240) at about 20 samples per triangle (8 spp), CesiumMan (4.7k,
-/// 160x120) about 60, AnimatedMorphSphere (960, 160x120) about 70: the fewer pixels the mesh
-/// covers, the later. 30 takes the BrainStem side at 16 spp and refits CesiumMan at low
-/// resolutions; it rebuilds AnimatedMorphSphere at 160x120 1 spp, where refitting is 1.2 ms
-/// a frame faster. A count of the samples that really reach the mesh would place it better.
-pub const REBUILD_SAMPLES_PER_TRIANGLE: f64 = 30.0;
+/// starts to pay, measured with the refitted tree walked in four-ray packets (update and tracing
+/// per frame, 2 threads): BrainStem (61,666 triangles, 320x240) between 40 samples per triangle
+/// (16 spp: refit 179-186 ms, rebuild 199-207 ms) and 80 (32 spp: rebuild 370 ms, refit 408 ms);
+/// CesiumMan (4.7k, 480x360) between about 290 (4 spp: refit 72 ms, rebuild 79 ms) and 1,180
+/// (16 spp: rebuild 228 ms, refit 235 ms): the fewer pixels the mesh covers, the later. 50 takes
+/// BrainStem's side; before the packets (single-ray refit walks) it was 30. A count of the
+/// samples that really reach the mesh would place it better.
+pub const REBUILD_SAMPLES_PER_TRIANGLE: f64 = 50.0;
 
 /// What the update did to an object this frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
