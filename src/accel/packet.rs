@@ -11,6 +11,7 @@
 //! the front-to-back order of the two children the same for every lane that visits both; a lane
 //! visiting one child keeps the interval the single walk would give it.
 
+use super::aabb::Aabb;
 use super::lanes::{F4, M4};
 use super::traverse::{STACK, Tally, prefetch};
 use super::tree::KdTree;
@@ -67,6 +68,50 @@ pub(super) fn group(rays: &[Ray]) -> impl Iterator<Item = Run> + '_ {
     })
 }
 
+/// Up to `LANES` rays laid out lane by lane for a packet walk; lanes past the rays given copy
+/// the last one (the walks start them inactive).
+pub(super) struct PacketRays {
+    pub rays: [Ray; LANES],
+    pub origin: [F4; 3],
+    /// `WalkRay`'s reciprocal direction, lane by lane (no component is zero in a packet).
+    pub inv_dir: [F4; 3],
+}
+
+impl PacketRays {
+    #[inline(always)]
+    pub(super) fn new(rays: &[Ray]) -> PacketRays {
+        let n = rays.len();
+        let rays: [Ray; LANES] = std::array::from_fn(|i| rays[i.min(n - 1)]);
+        let [ox, oy, oz, _] = F4::columns(rays.map(|r| r.origin.extend(0.0).to_array()));
+        let [dx, dy, dz, _] = F4::columns(rays.map(|r| r.dir.extend(1.0).to_array()));
+        PacketRays {
+            rays,
+            origin: [ox, oy, oz],
+            inv_dir: [dx, dy, dz].map(|d| F4::splat(1.0).div(d)),
+        }
+    }
+
+    /// Per lane, where the ray enters and leaves box `b` within `[0, limit]` (`Aabb::clip` lane
+    /// by lane): empty where entry > exit.
+    #[inline(always)]
+    pub(super) fn clip(&self, b: &Aabb, limit: F4) -> (F4, F4) {
+        let (lo, hi) = (b.min.to_array(), b.max.to_array());
+        let (mut entry, mut exit) = (F4::splat(0.0), limit);
+        for axis in 0..3 {
+            let near = F4::splat(lo[axis])
+                .sub(self.origin[axis])
+                .mul(self.inv_dir[axis]);
+            let far = F4::splat(hi[axis])
+                .sub(self.origin[axis])
+                .mul(self.inv_dir[axis]);
+            let swap = near.gt(far);
+            entry = entry.max_num(F4::select(swap, far, near));
+            exit = exit.min_num(F4::select(swap, near, far));
+        }
+        (entry, exit)
+    }
+}
+
 /// The packet's mailbox: the last triangles tested, hashed by index as the single-ray mailbox
 /// is, each with the lanes that tested it. A lane skips a triangle it tested already; testing
 /// one again could not change its result anyway (a miss within a limit misses within any
@@ -120,23 +165,10 @@ impl KdTree {
         if self.nodes.is_empty() || self.bounds.is_empty() {
             return hits;
         }
-        // Lanes past `n` copy the last ray and start inactive.
-        let lane_rays: [Ray; LANES] = std::array::from_fn(|i| rays[i.min(n - 1)]);
-        let [ox, oy, oz, _] = F4::columns(lane_rays.map(|r| r.origin.extend(0.0).to_array()));
-        let [dx, dy, dz, _] = F4::columns(lane_rays.map(|r| r.dir.extend(1.0).to_array()));
-        let origin = [ox, oy, oz];
-        // `WalkRay`'s reciprocal and `Aabb::clip` lane by lane (no component is zero here).
-        let inv_dir = [dx, dy, dz].map(|d| F4::splat(1.0).div(d));
+        let lanes = PacketRays::new(rays);
+        let (lane_rays, origin, inv_dir) = (lanes.rays, lanes.origin, lanes.inv_dir);
         let limits = F4::new(std::array::from_fn(|i| t_max[i.min(n - 1)]));
-        let (mut entry, mut exit) = (F4::splat(0.0), limits);
-        let (lo, hi) = (self.bounds.min.to_array(), self.bounds.max.to_array());
-        for axis in 0..3 {
-            let near = F4::splat(lo[axis]).sub(origin[axis]).mul(inv_dir[axis]);
-            let far = F4::splat(hi[axis]).sub(origin[axis]).mul(inv_dir[axis]);
-            let swap = near.gt(far);
-            entry = entry.max_num(F4::select(swap, far, near));
-            exit = exit.min_num(F4::select(swap, near, far));
-        }
+        let (entry, exit) = lanes.clip(&self.bounds, limits);
         let mut active = !entry.gt(exit).bits() & ((1 << n) - 1);
         if active == 0 {
             return hits;

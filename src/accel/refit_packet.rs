@@ -12,7 +12,7 @@
 
 use super::aabb::Aabb;
 use super::lanes::F4;
-use super::packet::LANES;
+use super::packet::{LANES, PacketRays};
 use super::refit::RefitTree;
 use super::tree::MAX_DEPTH;
 use super::triangle::{RayPre4, intersect4};
@@ -20,16 +20,8 @@ use super::{Hit, Ray};
 
 /// Per lane, where the rays enter `b` (before `limit`), and the lanes of `active` that do.
 #[inline(always)]
-fn enter(b: &Aabb, origin: &[F4; 3], inv_dir: &[F4; 3], limit: F4, active: u32) -> (F4, u32) {
-    let (lo, hi) = (b.min.to_array(), b.max.to_array());
-    let (mut t0, mut t1) = (F4::splat(0.0), limit);
-    for axis in 0..3 {
-        let near = F4::splat(lo[axis]).sub(origin[axis]).mul(inv_dir[axis]);
-        let far = F4::splat(hi[axis]).sub(origin[axis]).mul(inv_dir[axis]);
-        let swap = near.gt(far);
-        t0 = t0.max_num(F4::select(swap, far, near));
-        t1 = t1.min_num(F4::select(swap, near, far));
-    }
+fn enter(rays: &PacketRays, b: &Aabb, limit: F4, active: u32) -> (F4, u32) {
+    let (t0, t1) = rays.clip(b, limit);
     (t0, active & !t0.gt(t1).bits())
 }
 
@@ -49,18 +41,14 @@ impl RefitTree {
         if nodes.is_empty() || self.bounds().is_empty() {
             return hits;
         }
-        let lane_rays: [Ray; LANES] = std::array::from_fn(|i| rays[i.min(n - 1)]);
-        let [ox, oy, oz, _] = F4::columns(lane_rays.map(|r| r.origin.extend(0.0).to_array()));
-        let [dx, dy, dz, _] = F4::columns(lane_rays.map(|r| r.dir.extend(1.0).to_array()));
-        let origin = [ox, oy, oz];
-        let inv_dir = [dx, dy, dz].map(|d| F4::splat(1.0).div(d));
+        let rays4 = PacketRays::new(rays);
         let mut best = std::array::from_fn::<f32, LANES, _>(|i| t_max[i.min(n - 1)]);
         let mut best_v = F4::new(best);
-        let (entry, active) = enter(&self.bounds(), &origin, &inv_dir, best_v, (1 << n) - 1);
+        let (entry, active) = enter(&rays4, &self.bounds(), best_v, (1 << n) - 1);
         if active == 0 {
             return hits;
         }
-        let pre = RayPre4::new(lane_rays);
+        let pre = RayPre4::new(rays4.rays);
         let triangles = self.triangles();
         let boxes = self.boxes();
         // Both children can be pushed at every level: twice the depth bounds the stack.
@@ -97,8 +85,8 @@ impl RefitTree {
                 continue;
             }
             let [below_box, above_box] = &boxes[i as usize];
-            let (below_entry, below) = enter(below_box, &origin, &inv_dir, best_v, lanes);
-            let (above_entry, above) = enter(above_box, &origin, &inv_dir, best_v, lanes);
+            let (below_entry, below) = enter(&rays4, below_box, best_v, lanes);
+            let (above_entry, above) = enter(&rays4, above_box, best_v, lanes);
             let below = (i + 1, below, below_entry);
             let above = (i + node.above_offset() as u32, above, above_entry);
             // The nearer child is popped first: the one the octant meets first on the split
