@@ -46,20 +46,21 @@ impl KdTree {
         rays: &[Ray],
         t_max: &[f32],
         tally: &mut T,
-        mut out: impl FnMut(usize, Option<Hit>),
+        out: impl FnMut(usize, Option<Hit>),
     ) {
         assert_eq!(rays.len(), t_max.len(), "one limit per ray");
-        for run in packet::group(rays) {
-            match run {
-                Run::Single(i) => out(i, walk_one::<ANY>(self, &rays[i], t_max[i], tally)),
-                Run::Packet(a, b, oct) => {
-                    let hits = self.packet_walk::<_, ANY>(&rays[a..b], &t_max[a..b], oct, tally);
-                    for (k, h) in hits.into_iter().take(b - a).enumerate() {
-                        out(a + k, h);
-                    }
-                }
+        let walk = |run| match run {
+            Run::Single(i) => [
+                walk_one::<ANY>(self, &rays[i], t_max[i], tally),
+                None,
+                None,
+                None,
+            ],
+            Run::Packet(a, b, oct) => {
+                self.packet_walk::<_, ANY>(&rays[a..b], &t_max[a..b], oct, tally)
             }
-        }
+        };
+        packet::for_each_hit(rays, walk, out);
     }
 }
 

@@ -8,7 +8,7 @@
 //! the boxes live beside them.
 
 use super::aabb::Aabb;
-use super::packet::{Run, group};
+use super::packet::{Run, for_each_hit};
 use super::params::BuildParams;
 use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit, walk_one};
 use super::tree::{KdTree, MAX_DEPTH};
@@ -185,20 +185,17 @@ impl RefitTree {
         &self,
         rays: &[Ray],
         t_max: &[f32],
-        mut out: impl FnMut(usize, Option<Hit>),
+        out: impl FnMut(usize, Option<Hit>),
     ) {
         assert_eq!(rays.len(), t_max.len(), "one limit per ray");
-        for run in group(rays) {
-            match run {
-                Run::Single(i) => out(i, walk_one::<ANY>(self, &rays[i], t_max[i], &mut NoTally)),
-                Run::Packet(a, b, oct) => {
-                    let hits = self.packet_walk_boxes::<ANY>(&rays[a..b], &t_max[a..b], oct);
-                    for (k, h) in hits.into_iter().take(b - a).enumerate() {
-                        out(a + k, h);
-                    }
-                }
+        let walk = |run| match run {
+            Run::Single(i) => {
+                let hit = walk_one::<ANY>(self, &rays[i], t_max[i], &mut NoTally);
+                [hit, None, None, None]
             }
-        }
+            Run::Packet(a, b, oct) => self.packet_walk_boxes::<ANY>(&rays[a..b], &t_max[a..b], oct),
+        };
+        for_each_hit(rays, walk, out);
     }
 }
 
