@@ -155,6 +155,15 @@ impl EyeCamera {
         self.world.transform_point3(Vec3::new(0.0, 0.0, -depth))
     }
 
+    /// How far a point moves along its film row from this eye's film to `other`'s, in pixels, as
+    /// `(a, b)`: `a + b / depth` for a point `depth` metres deep (`a` at infinity). Exact for
+    /// eyes that share their orientation (off-axis, parallel and mono rigs), whose film rows
+    /// hold the same points; from `project`: film x is `k ((X - x_e) / depth + shift) + w / 2`.
+    pub fn parallax_line(&self, other: &EyeCamera) -> (f32, f32) {
+        let k = 0.5 * self.width / self.tan_x;
+        (k * (other.shift - self.shift), k * (self.x_e - other.x_e))
+    }
+
     /// Film position (pixels) of a world point, or `None` behind the eye: the inverse of `ray`.
     pub fn project(&self, world_point: Vec3) -> Option<Vec2> {
         let local = self.to_rig.transform_point3(world_point) - Vec3::new(self.x_e, 0.0, 0.0);
@@ -228,6 +237,21 @@ mod tests {
                 d.x
             );
             assert!(d.y.abs() < 1e-3);
+        }
+    }
+
+    #[test]
+    fn the_parallax_line_gives_the_film_shift_between_eyes_by_depth() {
+        for rig in [Rig::OffAxis, Rig::Parallel, Rig::Mono] {
+            let p = params(rig);
+            let l = EyeCamera::new(world(), &p, View::LEFT);
+            let r = EyeCamera::new(world(), &p, View::RIGHT);
+            let (a, b) = l.parallax_line(&r);
+            for (x, y, z) in [(0.3, -0.2, 1.0), (-1.0, 0.5, 2.5), (2.0, 1.0, 40.0)] {
+                let q = rig_point(Vec3::new(x, y, -z));
+                let d = r.project(q).unwrap() - l.project(q).unwrap();
+                assert!((d.x - (a + b / z)).abs() < 2e-3, "{rig:?} z={z}: {d}");
+            }
         }
     }
 

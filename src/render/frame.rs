@@ -4,7 +4,7 @@
 
 use super::camera::EyeCamera;
 use super::integrator::{Integrator, Primary, PrimaryRecord, RayCounts};
-use super::reproject::{PixelReuse, Reprojection, SourceSample};
+use super::reproject::{EdgeTest, PixelReuse, Reprojection, Sample, SourcePixels, SourceTile};
 use super::sampling::pixel_sample;
 use crate::accel::{Intersect, LANES, Ray};
 use crate::output::Image;
@@ -58,8 +58,9 @@ pub enum EyeReuse {
 #[derive(Clone, Copy)]
 pub enum ViewRole<'a> {
     Plain,
-    /// Keeps every camera sample's hit for other views (`Rendered::samples`).
-    Source,
+    /// Keeps what each pixel's camera samples found for other views (`Rendered::source`),
+    /// and the samples of pixels across a depth edge for those views.
+    Source(EdgeTest),
     /// Takes camera hits from a source view where the reprojection rule allows.
     Target(&'a Reprojection),
 }
@@ -83,9 +84,8 @@ pub struct Rendered {
     pub images: Vec<Image>,
     /// The rays of all views.
     pub counts: RayCounts,
-    /// A `Source` view's camera samples, per tile in tile order, each in pixel and sample
-    /// order.
-    pub samples: Vec<Vec<SourceSample>>,
+    /// A `Source` view's pixels as other views reuse them.
+    pub source: Option<SourcePixels>,
 }
 
 /// Renders one view, or two together (the eyes under `EyeReuse::Paired`). `on_tile(v)` is
@@ -123,21 +123,22 @@ pub fn render_views<A: Intersect>(
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
             let tw = x1 - x0;
             let mut pixels = vec![vec![Vec3::ZERO; tw * (y1 - y0)]; views.len()];
+            let mut source = match views[0].role {
+                ViewRole::Source(edge) => Some(SourceTile::new(tw * (y1 - y0), spp as usize, edge)),
+                _ => None,
+            };
             // Once a stop is asked for, tiles not yet started stay black: the caller discards
             // the frame.
             if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return TileResult {
                     pixels,
                     counts: RayCounts::default(),
-                    samples: Vec::new(),
+                    source,
                 };
             }
             let counts = Cell::new(RayCounts::default());
             let (mut radiance_taken, mut misses_taken) = (0u64, 0u64);
-            let mut samples = match views[0].role {
-                ViewRole::Source => Vec::with_capacity(tw * (y1 - y0) * spp as usize),
-                _ => Vec::new(),
-            };
+            let eye = views[0].camera.position();
             // Each sample's camera rays of a block, and then their shadow, mirror and
             // refraction rays, travel the tree as packets. A pixel still sums its own samples
             // in order, so the image does not depend on the grouping.
@@ -179,10 +180,10 @@ pub fn render_views<A: Intersect>(
                     let mut sums = [Vec3::ZERO; LANES];
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
                     let mut limits = [0.0; LANES];
-                    let mut films = [Vec2::ZERO; LANES];
                     let mut radiance = [Vec3::ZERO; LANES];
                     let mut records = [PrimaryRecord::NONE; LANES];
                     let mut known = [None; LANES];
+                    let mut film_x = [0.0; LANES];
                     for s in 0..spp {
                         // The lanes that need the integrator, packed to the front.
                         let mut m = 0;
@@ -200,7 +201,7 @@ pub fn render_views<A: Intersect>(
                                 Some(PixelReuse::Hits(h)) => h.verify(&ray, limit, geometry),
                                 _ => None,
                             };
-                            (rays[m], limits[m], films[m], known[m]) = (ray, limit, f, hit);
+                            (rays[m], limits[m], known[m], film_x[m]) = (ray, limit, hit, o.x);
                             slot[m] = i;
                             m += 1;
                         }
@@ -209,7 +210,7 @@ pub fn render_views<A: Intersect>(
                         }
                         let primary = match views[0].role {
                             ViewRole::Plain => Primary::Trace,
-                            ViewRole::Source => Primary::Record(&mut records[..m]),
+                            ViewRole::Source(_) => Primary::Record(&mut records[..m]),
                             ViewRole::Target(_) => Primary::Known(&known[..m]),
                         };
                         integrator.radiance_packet(
@@ -222,10 +223,22 @@ pub fn render_views<A: Intersect>(
                         for (&i, r) in slot[..m].iter().zip(&radiance[..m]) {
                             sums[i] += *r;
                         }
-                        if matches!(views[0].role, ViewRole::Source) {
-                            samples.extend((0..m).map(|k| {
-                                SourceSample::new(films[k], &rays[k], &records[k], radiance[k])
-                            }));
+                        if let Some(source) = &mut source {
+                            for (k, &i) in slot[..m].iter().enumerate() {
+                                let (_, x, y) = lanes[i];
+                                let p = records[k].point;
+                                let sample = Sample {
+                                    film_x: film_x[k],
+                                    depth: views[0].camera.depth(p),
+                                    distance: p.distance(eye),
+                                };
+                                source.add(
+                                    (y - y0) * tw + (x - x0),
+                                    sample,
+                                    &records[k],
+                                    radiance[k],
+                                );
+                            }
                         }
                     }
                     for (i, &(v, x, y)) in lanes.iter().enumerate() {
@@ -243,13 +256,13 @@ pub fn render_views<A: Intersect>(
             TileResult {
                 pixels,
                 counts,
-                samples,
+                source,
             }
         })
         .collect();
     let mut images: Vec<Image> = views.iter().map(|_| Image::new(w, h)).collect();
     let mut counts = RayCounts::default();
-    let mut samples = Vec::new();
+    let mut source = Vec::new();
     for (t, tile) in tiles.into_iter().enumerate() {
         let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
         let tw = (x0 + TILE).min(w) - x0;
@@ -259,18 +272,20 @@ pub fn render_views<A: Intersect>(
             }
         }
         counts.add(&tile.counts);
-        samples.push(tile.samples);
+        source.extend(tile.source);
     }
+    let source = matches!(views[0].role, ViewRole::Source(_))
+        .then(|| SourcePixels::new(source, (w, h), TILE));
     Rendered {
         images,
         counts,
-        samples,
+        source,
     }
 }
 
-/// One tile's pixels per view, its rays and (for a source view) its samples.
+/// One tile's pixels per view, its rays and (for a source view) what other views reuse.
 struct TileResult {
     pixels: Vec<Vec<Vec3>>,
     counts: RayCounts,
-    samples: Vec<SourceSample>,
+    source: Option<SourceTile>,
 }

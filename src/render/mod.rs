@@ -27,7 +27,7 @@ pub use frame::{
     EyeReuse, FilmParams, Rendered, TILE, ViewFilm, ViewRole, render_views, tile_count,
 };
 pub use integrator::{Integrator, RECORDED_LIGHTS, RayCounts, TraceSettings, offset_origin};
-pub use reproject::{Reprojection, SourceSample};
+pub use reproject::{EdgeTest, Reprojection, SourcePixels};
 pub use sampling::pixel_sample;
 pub use shading::ShadingModel;
 pub use surface::SceneView;

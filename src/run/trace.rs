@@ -10,9 +10,10 @@ use crate::error::Result;
 use crate::output::Image;
 use crate::pipeline::LoadedPipeline;
 use crate::render::{
-    Backend, Budget, DepthProbe, EyeCamera, EyeReuse, FilmParams, Integrator, ParallaxModel,
-    ProbeCamera, RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams, SceneView, SourceSample,
-    TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views, view_window,
+    Backend, Budget, DepthProbe, EdgeTest, EyeCamera, EyeReuse, FilmParams, Integrator,
+    ParallaxModel, ProbeCamera, RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams,
+    SceneView, SourcePixels, TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole,
+    render_views, view_window,
 };
 use crate::scene::{Animation, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -366,19 +367,18 @@ impl<'p> FrameTracer<'p> {
             passes = vec![views.to_vec()];
         }
         let mut images = Vec::new();
-        let mut source: Option<(EyeCamera, Vec<Vec<SourceSample>>)> = None;
+        let mut source: Option<(EyeCamera, SourcePixels)> = None;
         for pass in passes {
             let cameras: Vec<EyeCamera> = pass
                 .iter()
                 .map(|&v| EyeCamera::new(camera_world, &rig, v))
                 .collect();
             let t = Instant::now();
-            let reprojection = source.as_ref().map(|(source_camera, samples)| {
+            let reprojection = source.as_ref().map(|(source_camera, pixels)| {
                 Reprojection::new(
-                    samples,
+                    pixels,
                     source_camera,
                     &cameras[0],
-                    (spec.render.width as usize, spec.render.height as usize),
                     TILE,
                     zfar.is_none(),
                     take_radiance,
@@ -386,7 +386,16 @@ impl<'p> FrameTracer<'p> {
             });
             let role = match (&reprojection, pass[0]) {
                 (Some(r), _) => ViewRole::Target(r),
-                (None, View::LEFT) if reproject => ViewRole::Source,
+                (None, View::LEFT) if reproject => ViewRole::Source(EdgeTest {
+                    parallax_per_inv_depth: views
+                        .iter()
+                        .map(|&v| {
+                            let other = EyeCamera::new(camera_world, &rig, v);
+                            cameras[0].parallax_line(&other).1.abs()
+                        })
+                        .fold(0.0, f32::max),
+                    misses_land: zfar.is_none(),
+                }),
                 _ => ViewRole::Plain,
             };
             let films: Vec<ViewFilm> = cameras
@@ -408,8 +417,8 @@ impl<'p> FrameTracer<'p> {
             };
             let secs = t.elapsed().as_secs_f64() / pass.len() as f64;
             stats.rays.add(&rendered.counts);
-            if matches!(role, ViewRole::Source) {
-                source = Some((cameras[0].clone(), rendered.samples));
+            if let Some(pixels) = rendered.source {
+                source = Some((cameras[0].clone(), pixels));
             }
             for (view, mut image) in pass.into_iter().zip(rendered.images) {
                 if let Some(r) = stats.rig.filter(|r| r.window != (0.0, 0.0)) {

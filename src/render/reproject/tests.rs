@@ -1,61 +1,86 @@
-//! The reuse rules on grids filled by hand, without cameras.
+//! The reuse rules on grids of cells filled by hand, without cameras.
 
+use super::source::SourcePixel;
 use super::*;
 
 #[test]
 fn the_edge_strip_sits_on_the_side_near_points_move_to() {
-    assert_eq!(edge_strips(-3.2, 100), (0, 96));
-    assert_eq!(edge_strips(2.0, 100), (2, 100));
-    assert_eq!(edge_strips(0.0, 100), (0, 100));
-    assert_eq!(edge_strips(-500.0, 100), (0, 0));
-    assert_eq!(edge_strips(f32::NAN, 100), (0, 0));
+    assert_eq!(edge_strips(-3.2, 100), 0..96);
+    assert_eq!(edge_strips(2.0, 100), 2..100);
+    assert_eq!(edge_strips(0.0, 100), 0..100);
+    assert_eq!(edge_strips(-500.0, 100), 0..0);
+    assert_eq!(edge_strips(f32::NAN, 100), 0..0);
 }
 
-/// A grid filled directly (no cameras): one sample per pixel at parallax `parallax(x)`.
-fn grid(width: usize, height: usize, parallax: impl Fn(usize, usize) -> f32) -> Reprojection {
-    let mut cells = vec![Cell::default(); width * height];
-    for y in 0..height {
-        for x in 0..width {
-            let s = SourceSample {
-                film: Vec2::ZERO,
-                point: Vec3::ZERO,
-                prim: (x / 4) as u32,
-                lit: 1,
-                shadowed: 0,
-                lobe: 1.0,
-                radiance: Vec3::ONE,
-            };
-            cells[y * width + x].add(&s, parallax(x, y), true);
+/// A source pixel with one hit on `prim`, lit by light 0, of radiance 1.
+fn hit_pixel(prim: u32) -> SourcePixel {
+    let mut p = SourcePixel::default();
+    let record = crate::render::integrator::PrimaryRecord {
+        hit: Some(Hit {
+            t: 1.0,
+            prim,
+            b1: 0.0,
+            b2: 0.0,
+        }),
+        lit: 1,
+        lobe: 1.0,
+        ..crate::render::integrator::PrimaryRecord::NONE
+    };
+    let sample = source::Sample {
+        film_x: 0.5,
+        depth: 1.0,
+        distance: 1.0,
+    };
+    p.add(sample, &record, Vec3::ONE);
+    p
+}
+
+/// Cells filled directly (no cameras): one source pixel per cell, covering it whole, at
+/// parallax `parallax(x, y)`, having hit triangle `x / 4`.
+struct Grid {
+    width: usize,
+    height: usize,
+    cells: Vec<Cell>,
+}
+
+impl Grid {
+    fn new(width: usize, height: usize, parallax: impl Fn(usize, usize) -> f32) -> Grid {
+        let mut cells = vec![Cell::default(); width * height];
+        for y in 0..height {
+            for x in 0..width {
+                let p = parallax(x, y);
+                cells[y * width + x].add_hits(&hit_pixel((x / 4) as u32), [p, p], 1.0, true);
+            }
+        }
+        Grid {
+            width,
+            height,
+            cells,
         }
     }
-    Reprojection {
-        width,
-        height,
-        band_rows: height,
-        bands: vec![Band {
-            rows: row_windows(&cells, width, false),
-            cells,
-        }],
-        x_lo: 0,
-        x_hi: width,
-    }
-}
 
-impl Reprojection {
     fn cell(&mut self, x: usize, y: usize) -> &mut Cell {
-        &mut self.bands[0].cells[y * self.width + x]
+        &mut self.cells[y * self.width + x]
     }
 
-    /// Rules 1 and 2 again after cells changed.
-    fn refresh(&mut self, radiance: bool) {
-        let band = &mut self.bands[0];
-        band.rows = row_windows(&band.cells, self.width, radiance);
+    /// Rules 1-4 over the whole grid.
+    fn plan(&self, radiance: bool) -> Reprojection {
+        let (w, h) = (self.width, self.height);
+        let mut windows = vec![RowWindow::default(); w * h];
+        for (row, out) in self.cells.chunks(w).zip(windows.chunks_mut(w)) {
+            row_windows(row, radiance, out);
+        }
+        Reprojection {
+            width: w,
+            band_rows: h,
+            bands: vec![plan_rows(&self.cells, &windows, (w, h), 0..h, 0..h, 0..w)],
+        }
     }
 }
 
 #[test]
 fn a_step_in_parallax_refuses_reuse_around_it_and_only_there() {
-    let g = grid(20, 5, |x, _| if x < 10 { 0.0 } else { -3.0 });
+    let g = Grid::new(20, 5, |x, _| if x < 10 { 0.0 } else { -3.0 }).plan(false);
     for x in 2..18 {
         let near_step = (8..=11).contains(&x);
         assert_eq!(g.pixel(x, 2).is_none(), near_step, "x={x}");
@@ -67,69 +92,98 @@ fn a_step_in_parallax_refuses_reuse_around_it_and_only_there() {
 #[test]
 fn a_parallax_that_changes_from_row_to_row_still_reuses() {
     // A receding floor: one pixel more parallax per row, constant along each row.
-    let g = grid(20, 6, |_, y| y as f32);
+    let g = Grid::new(20, 6, |_, y| y as f32).plan(false);
     assert!((1..5).all(|y| g.pixel(8, y).is_some()));
     // Along a row the same change is a step.
-    let g = grid(20, 6, |x, _| x as f32);
+    let g = Grid::new(20, 6, |x, _| x as f32).plan(false);
     assert!(g.pixel(8, 2).is_none());
 }
 
 #[test]
 fn an_uncovered_pixel_refuses_its_window() {
-    let mut g = grid(20, 5, |_, _| 0.0);
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
     for x in 9..=11 {
         *g.cell(x, 2) = Cell::default();
     }
-    g.refresh(false);
+    let g = g.plan(false);
     assert!(g.pixel(8, 2).is_none() && g.pixel(12, 1).is_none());
     assert!(g.pixel(7, 2).is_some() && g.pixel(13, 2).is_some());
 }
 
 #[test]
 fn candidates_come_from_the_neighbouring_pixels_and_shadow_answers_must_agree() {
-    let hits = |g: &Reprojection| match g.pixel(8, 2) {
-        Some(PixelReuse::Hits(h)) => h,
-        _ => panic!("a flat window reuses hits"),
-    };
-    let mut g = grid(20, 5, |_, _| 0.0);
-    let r = hits(&g);
+    fn hits(g: &Reprojection) -> (Vec<u32>, u32, u32) {
+        match g.pixel(8, 2) {
+            Some(PixelReuse::Hits(h)) => (h.candidates.to_vec(), h.lit, h.shadowed),
+            _ => panic!("a flat window reuses hits"),
+        }
+    }
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
     // Pixels 7..=9 saw triangles 1 and 2 (x / 4).
-    assert_eq!(r.candidates.as_slice(), &[1, 2]);
-    assert_eq!((r.lit, r.shadowed), (1, 0));
+    assert_eq!(hits(&g.plan(false)), (vec![1, 2], 1, 0));
     g.cell(10, 3).shadowed = 1;
-    g.refresh(false);
-    let r = hits(&g);
-    assert_eq!((r.lit, r.shadowed), (0, 0), "a disagreeing light is traced");
+    assert_eq!(
+        hits(&g.plan(false)),
+        (vec![1, 2], 0, 0),
+        "a disagreeing light is traced"
+    );
+}
+
+#[test]
+fn a_pixel_whose_candidates_overflowed_traces() {
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
+    g.cell(9, 1).overflow = true;
+    let p = g.plan(false);
+    assert!(p.pixel(8, 2).is_none() && p.pixel(10, 2).is_none());
+    assert!(p.pixel(11, 2).is_some() && p.pixel(7, 2).is_some());
 }
 
 #[test]
 fn a_flat_rough_pixel_takes_its_samples_mean_radiance_and_an_edge_does_not() {
-    let mut g = grid(20, 5, |_, _| 0.0);
-    g.refresh(true);
-    assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Radiance(v)) if v == Vec3::ONE));
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
+    assert!(matches!(g.plan(true).pixel(8, 2), Some(PixelReuse::Radiance(v)) if v == Vec3::ONE));
     // A neighbour in the row that differs by more than the spread: the pixel traces its
     // own samples on the reused hits.
-    g.cell(9, 2).radiance_max = Vec3::splat(1.5);
-    g.refresh(true);
-    assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Hits(_))));
+    g.cell(9, 2).radiance_hi = Vec3::splat(1.5);
+    assert!(matches!(
+        g.plan(true).pixel(8, 2),
+        Some(PixelReuse::Hits(_))
+    ));
 }
 
 #[test]
 fn a_window_of_misses_is_the_background() {
-    let mut g = grid(20, 5, |_, _| 0.0);
-    for c in &mut g.bands[0].cells {
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
+    for c in &mut g.cells {
         *c = Cell::default();
-        let miss = SourceSample {
-            film: Vec2::ZERO,
-            point: Vec3::Z,
-            prim: MISS,
-            lit: 0,
-            shadowed: 0,
-            lobe: -1.0,
-            radiance: Vec3::ZERO,
-        };
-        c.add(&miss, 0.0, false);
+        c.add_miss(0.0);
     }
-    g.refresh(false);
-    assert!(matches!(g.pixel(8, 2), Some(PixelReuse::Miss)));
+    assert!(matches!(g.plan(false).pixel(8, 2), Some(PixelReuse::Miss)));
+}
+
+#[test]
+fn a_source_pixel_lands_on_the_cells_its_span_overlaps_weighted_by_the_overlap() {
+    // Two source pixels at inverse depth 1 that move 0.25 px (a = 0, b = 0.25): pixel 3 lands
+    // on cells 3 (0.75 of it) and 4 (0.25).
+    let mut a = hit_pixel(7);
+    a.radiance = Vec3::splat(0.4);
+    let landing = Landing {
+        a: 0.0,
+        b: 0.25,
+        misses: true,
+        baseline: Some(0.0),
+    };
+    let mut row = vec![Cell::default(); 8];
+    let land = |x: f32, p: &SourcePixel, row: &mut [Cell]| {
+        let q = landing.a + landing.b * p.inv_depth[0];
+        band::splat(row, x + q, x + 1.0 + q, |c, w| {
+            c.add_hits(p, [q, q], w, true)
+        });
+    };
+    land(3.0, &a, &mut row);
+    land(4.0, &hit_pixel(8), &mut row);
+    assert!((row[3].weight - 0.75).abs() < 1e-6 && (row[4].weight - 1.0).abs() < 1e-6);
+    assert!((row[4].radiance.x - (0.25 * 0.4 + 0.75)).abs() < 1e-6);
+    assert_eq!(&row[4].prims[..row[4].distinct as usize], &[7, 8]);
+    assert!(!row[2].covered() && row[5].covered() && !row[6].covered());
 }

@@ -1,0 +1,384 @@
+//! One band of target rows: the source pixels that land in it, gathered into cells, and from
+//! the cells each target pixel's plan (the rules of `mod.rs`). A band reads the rows it covers
+//! and one more on each side (the rules' windows are three rows high), so bands are planned
+//! independently, and the plans do not depend on the thread count.
+
+use super::source::{SourcePixel, SourcePixels};
+use super::{LOBE_FRACTION, MAX_PARALLAX_SPREAD, RADIANCE_SPREAD};
+use glam::Vec3;
+use std::ops::Range;
+
+/// Half-widths of rules 1-2's window (5x3) and of rule 4's candidate window (3x3).
+pub(super) const WINDOW_X: usize = 2;
+pub(super) const WINDOW_Y: usize = 1;
+const CANDIDATE_X: usize = 1;
+/// Distinct triangles a target cell holds, and candidates a target pixel tests. Where there
+/// are more, the pixel traces: its candidates would be incomplete.
+const SLOTS: usize = 8;
+const MAX_CANDIDATES: usize = 24;
+
+/// How source pixels land in the target film, and which may lend their radiance.
+#[derive(Clone, Copy)]
+pub(super) struct Landing {
+    /// A point at inverse depth `u` moves `a + b u` pixels along its row
+    /// (`EyeCamera::parallax_line`).
+    pub a: f32,
+    pub b: f32,
+    /// Misses land too, at infinity (no far plane: a miss is a miss at every distance).
+    pub misses: bool,
+    /// `"reproject-radiance"`: the distance between the eyes, metres.
+    pub baseline: Option<f32>,
+}
+
+/// What a target pixel does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Plan {
+    Trace,
+    /// Every source pixel around it missed.
+    Miss,
+    Radiance(Vec3),
+    /// Its samples verify `candidates[first..first + len]` of the band, with the window's
+    /// shadow answers.
+    Hits {
+        lit: u32,
+        shadowed: u32,
+        first: u32,
+        len: u8,
+    },
+}
+
+/// One band's plans, row-major, and the candidate triangles they index.
+pub(super) struct BandPlan {
+    pub plans: Vec<Plan>,
+    pub candidates: Vec<u32>,
+}
+
+/// The source pixels that landed (in part) on one target pixel.
+#[derive(Clone, Copy)]
+pub(super) struct Cell {
+    /// The smallest and largest parallax landed; empty (`[inf, -inf]`) where nothing did.
+    pub parallax: [f32; 2],
+    pub prims: [u32; SLOTS],
+    pub distinct: u8,
+    /// A source pixel hit more triangles than it kept, or this cell more than `SLOTS`.
+    pub overflow: bool,
+    /// A miss landed.
+    pub miss: bool,
+    /// A hit landed whose radiance cannot stand for the target's.
+    pub indirect: bool,
+    pub lit: u32,
+    pub shadowed: u32,
+    /// The landed radiance, each source pixel's mean weighted by the part of it that landed
+    /// here, the weights' sum, and the range of the samples' radiance per channel.
+    pub weight: f32,
+    pub radiance: Vec3,
+    pub radiance_lo: Vec3,
+    pub radiance_hi: Vec3,
+}
+
+impl Default for Cell {
+    fn default() -> Cell {
+        Cell {
+            parallax: [f32::INFINITY, f32::NEG_INFINITY],
+            prims: [0; SLOTS],
+            distinct: 0,
+            overflow: false,
+            miss: false,
+            indirect: false,
+            lit: 0,
+            shadowed: 0,
+            weight: 0.0,
+            radiance: Vec3::ZERO,
+            radiance_lo: Vec3::INFINITY,
+            radiance_hi: Vec3::NEG_INFINITY,
+        }
+    }
+}
+
+impl Cell {
+    pub fn covered(&self) -> bool {
+        self.parallax[0] <= self.parallax[1]
+    }
+
+    fn land(&mut self, parallax: [f32; 2]) {
+        self.parallax = [
+            self.parallax[0].min(parallax[0]),
+            self.parallax[1].max(parallax[1]),
+        ];
+    }
+
+    /// Adds the hits of source pixel `p`, of which the part `share` lands here; `direct` says
+    /// whether their radiance may stand for the target's.
+    pub fn add_hits(&mut self, p: &SourcePixel, parallax: [f32; 2], share: f32, direct: bool) {
+        self.land(parallax);
+        self.lit |= p.lit;
+        self.shadowed |= p.shadowed;
+        self.overflow |= p.overflow;
+        for &prim in &p.prims[..p.distinct as usize] {
+            self.add_prim(prim);
+        }
+        if direct {
+            self.weight += share;
+            self.radiance += share / f32::from(p.hits) * p.radiance;
+            self.radiance_lo = self.radiance_lo.min(p.radiance_lo);
+            self.radiance_hi = self.radiance_hi.max(p.radiance_hi);
+        } else {
+            self.indirect = true;
+        }
+    }
+
+    /// Adds one hit on `prim` of source pixel `p` (a pixel across a depth edge) at `parallax`:
+    /// the pixel's shadow answers, and no radiance (it mixes both sides of the edge).
+    pub fn add_hit(&mut self, prim: u32, p: &SourcePixel, parallax: f32) {
+        self.land([parallax, parallax]);
+        self.lit |= p.lit;
+        self.shadowed |= p.shadowed;
+        self.indirect = true;
+        self.add_prim(prim);
+    }
+
+    fn add_prim(&mut self, prim: u32) {
+        let n = self.distinct as usize;
+        if self.prims[..n].contains(&prim) {
+            return;
+        }
+        if n < SLOTS {
+            self.prims[n] = prim;
+            self.distinct += 1;
+        } else {
+            self.overflow = true;
+        }
+    }
+
+    pub fn add_miss(&mut self, parallax: f32) {
+        self.land([parallax, parallax]);
+        self.miss = true;
+    }
+}
+
+/// Calls `add(cell, share)` for each cell of `row` that the span `[from, to]` (film x,
+/// pixels) meets, `share` being the part of the span over it (1 for a point). A NaN span lands
+/// nowhere.
+pub(super) fn splat(row: &mut [Cell], from: f32, to: f32, mut add: impl FnMut(&mut Cell, f32)) {
+    let first = from.floor().max(0.0);
+    let last = (to.floor() + 1.0).min(row.len() as f32);
+    // Written so that NaN (and an empty span) fails.
+    if !(first < last && from <= to) {
+        return;
+    }
+    let length = to - from;
+    let first = first as usize;
+    for (k, cell) in row[first..last as usize].iter_mut().enumerate() {
+        let x = (first + k) as f32;
+        let share = if length > 0.0 {
+            (to.min(x + 1.0) - from.max(x)) / length
+        } else {
+            1.0
+        };
+        if share > 0.0 {
+            add(cell, share);
+        }
+    }
+}
+
+/// Lands source row `y` on `row`, the target's row `y` (the rigs reprojection runs on keep a
+/// point's row). A source pixel's samples lie on a span of its width, and its hits move by
+/// their parallax range: they land on that span of the target row, widened by the range.
+pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: &mut [Cell]) {
+    for (x0, pixels, edges) in source.row(y) {
+        for (i, p) in pixels.iter().enumerate() {
+            let x = (x0 + i) as f32;
+            let direct = landing
+                .baseline
+                .is_some_and(|b| p.reach >= 0.0 && b <= LOBE_FRACTION * p.reach);
+            if p.edge[1] > 0 {
+                // Across a depth edge: each sample lands where it moves to, and what lies
+                // between them is a hole. Their mean radiance mixes both sides.
+                let [first, n] = p.edge.map(|k| k as usize);
+                for e in &edges[first..first + n] {
+                    let q = landing.a + landing.b * e.inv_depth;
+                    let at = x + e.film_x + q;
+                    match e.inv_depth > 0.0 {
+                        true => splat(row, at, at, |c, _| c.add_hit(e.prim, p, q)),
+                        false if landing.misses => splat(row, at, at, |c, _| c.add_miss(q)),
+                        false => {}
+                    }
+                }
+                continue;
+            }
+            let (from, to) = p.film_span();
+            let (from, to) = (x + from, x + to);
+            if p.hits > 0 {
+                let (p0, p1) = (
+                    landing.a + landing.b * p.inv_depth[0],
+                    landing.a + landing.b * p.inv_depth[1],
+                );
+                let parallax = [p0.min(p1), p0.max(p1)];
+                splat(row, from + parallax[0], to + parallax[1], |c, w| {
+                    c.add_hits(p, parallax, w, direct)
+                });
+            }
+            if p.misses > 0 && landing.misses {
+                splat(row, from + landing.a, to + landing.a, |c, _| {
+                    c.add_miss(landing.a)
+                });
+            }
+        }
+    }
+}
+
+/// What one pixel's row contributes to the rules: whether the five pixels centred on it are all
+/// covered (rule 1) and keep their parallax within the bound (rule 2), the union of their
+/// shadow answers, whether the three candidate pixels hold a triangle or overflowed, and under
+/// `"reproject-radiance"` the pixel's value where its row allows one (`row_radiance`).
+/// Deciding these row by row lets a target pixel read three of these instead of its window.
+#[derive(Clone, Copy, Default)]
+pub(super) struct RowWindow {
+    pub ok: bool,
+    pub hits: bool,
+    pub overflow: bool,
+    pub lit: u32,
+    pub shadowed: u32,
+    pub radiance: Option<Vec3>,
+}
+
+/// `RowWindow` for every pixel of `row`; `radiance` under `"reproject-radiance"`.
+pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
+    let width = row.len();
+    out.fill(RowWindow::default());
+    // Rule 1: the pixel or a horizontal neighbour holds a sample.
+    let covered = |x: usize| {
+        row[x.saturating_sub(1)..(x + 2).min(width)]
+            .iter()
+            .any(Cell::covered)
+    };
+    for x in WINDOW_X..width.saturating_sub(WINDOW_X) {
+        let window = &row[x - WINDOW_X..=x + WINDOW_X];
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let (mut lit, mut shadowed) = (0, 0);
+        for c in window {
+            lo = lo.min(c.parallax[0]);
+            hi = hi.max(c.parallax[1]);
+            lit |= c.lit;
+            shadowed |= c.shadowed;
+        }
+        let spread = hi - lo;
+        let ok = (x - WINDOW_X..=x + WINDOW_X).all(covered)
+            && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
+        let candidates = &row[x - CANDIDATE_X..=x + CANDIDATE_X];
+        out[x] = RowWindow {
+            ok,
+            hits: candidates.iter().any(|c| c.distinct > 0),
+            overflow: candidates.iter().any(|c| c.overflow),
+            lit,
+            shadowed,
+            radiance: (radiance && ok).then(|| row_radiance(row, x)).flatten(),
+        };
+    }
+}
+
+/// `"reproject-radiance"`: pixel `x`'s landed radiance, where the pixel and its two row
+/// neighbours hold only hits that may stand for the target's, whose samples agree within
+/// `RADIANCE_SPREAD` per channel (a flat patch: which part of the pixel a sample covered does
+/// not matter). The pixel also needs its window to pass the rules and agree on every shadow.
+fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for c in &row[x - 1..=x + 1] {
+        if c.weight <= 0.0 || c.indirect || c.miss {
+            return None;
+        }
+        lo = lo.min(c.radiance_lo);
+        hi = hi.max(c.radiance_hi);
+    }
+    let flat = (hi - lo).max_element() <= RADIANCE_SPREAD;
+    let c = &row[x];
+    flat.then(|| c.radiance / c.weight)
+}
+
+/// The plans of target rows `rows` from the cells and row windows of rows `halo` (`rows` and
+/// up to one row on each side), of which only columns `columns` may reuse (rule 3).
+pub(super) fn plan_rows(
+    cells: &[Cell],
+    windows: &[RowWindow],
+    (width, height): (usize, usize),
+    rows: Range<usize>,
+    halo: Range<usize>,
+    columns: Range<usize>,
+) -> BandPlan {
+    let mut band = BandPlan {
+        plans: Vec::with_capacity(rows.len() * width),
+        candidates: Vec::new(),
+    };
+    let at = |y: usize, x: usize| (y - halo.start) * width + x;
+    for y in rows {
+        for x in 0..width {
+            let inside = y >= WINDOW_Y
+                && y + WINDOW_Y < height
+                && x >= columns.start + WINDOW_X
+                && x + WINDOW_X < columns.end;
+            let plan = if inside {
+                plan_pixel(cells, windows, x, y, &at, &mut band.candidates)
+            } else {
+                Plan::Trace
+            };
+            band.plans.push(plan);
+        }
+    }
+    band
+}
+
+/// Rules 1-4 for target pixel (x, y), inside the film's border and rule 3's strips.
+fn plan_pixel(
+    cells: &[Cell],
+    windows: &[RowWindow],
+    x: usize,
+    y: usize,
+    at: &impl Fn(usize, usize) -> usize,
+    candidates: &mut Vec<u32>,
+) -> Plan {
+    let (mut lit, mut shadowed, mut hits, mut overflow) = (0u32, 0u32, false, false);
+    for cy in y - WINDOW_Y..=y + WINDOW_Y {
+        let r = &windows[at(cy, x)];
+        if !r.ok {
+            return Plan::Trace;
+        }
+        lit |= r.lit;
+        shadowed |= r.shadowed;
+        hits |= r.hits;
+        overflow |= r.overflow;
+    }
+    if lit & shadowed == 0
+        && let Some(v) = windows[at(y, x)].radiance
+    {
+        return Plan::Radiance(v);
+    }
+    // Rule 1 holds, so the candidate pixels hold samples: with no triangle among them, they
+    // all missed.
+    if !hits {
+        return Plan::Miss;
+    }
+    if overflow {
+        return Plan::Trace;
+    }
+    let first = candidates.len();
+    for cy in y - WINDOW_Y..=y + WINDOW_Y {
+        for c in &cells[at(cy, x - CANDIDATE_X)..=at(cy, x + CANDIDATE_X)] {
+            for &prim in &c.prims[..c.distinct as usize] {
+                if !candidates[first..].contains(&prim) {
+                    candidates.push(prim);
+                }
+            }
+        }
+    }
+    let len = candidates.len() - first;
+    if len > MAX_CANDIDATES {
+        candidates.truncate(first);
+        return Plan::Trace;
+    }
+    Plan::Hits {
+        lit: lit & !shadowed,
+        shadowed: shadowed & !lit,
+        first: first as u32,
+        len: len as u8,
+    }
+}
