@@ -43,14 +43,14 @@ pub enum EyeReuse {
     /// are bit-identical to `off` (every lane computes its own ray's radiance exactly).
     Paired,
     /// The right eye (and every view after the left) takes the left eye's camera hits where
-    /// the reprojection rule allows (`render/reproject.rs`) and traces the rest; shading,
+    /// the reprojection rule allows (`render/reproject/`) and traces the rest; shading,
     /// mirror and glass rays are the view's own. Approximate where the rule is wrong.
     Reproject,
     /// As `reproject`, and a pixel whose reprojected samples all hit rough surfaces (no mirror
-    /// or glass ray), in a window that agrees on every shadow, takes their mean radiance,
-    /// view-dependent highlights included: Adelson and Hodges' reuse of the colour. Cheaper,
-    /// and wrong by the change of the highlights between the eyes and by the uneven spread of
-    /// the reprojected samples over the pixel.
+    /// or glass ray) and agree within 0.02 with those of its row neighbours takes their mean
+    /// radiance, view-dependent highlights included: Adelson and Hodges' reuse of the colour.
+    /// Cheaper, and wrong by the change of the highlights between the eyes and by the uneven
+    /// spread of the reprojected samples over the pixel.
     ReprojectRadiance,
 }
 
@@ -111,7 +111,6 @@ pub fn render_views<A: Intersect>(
     let tiles_x = w.div_ceil(TILE);
     // A packet's pixels: a 2x2 quad of one view, or a 2x1 pair of each of two views.
     let (block_w, block_h) = if views.len() == 1 { (2, 2) } else { (2, 1) };
-    let geometry = integrator.scene.geometry;
     // One tile per task: tiles differ in cost by orders of magnitude (sky against a glass
     // sphere), and rayon's default splitting left a core idle for about a tenth of each eye
     // waiting on the last large chunk.
@@ -136,117 +135,69 @@ pub fn render_views<A: Intersect>(
                     source,
                 };
             }
-            let counts = Cell::new(RayCounts::default());
+            let packets = Packets {
+                integrator,
+                views,
+                spp,
+                width: w,
+                eye: views[0].camera.position(),
+                counts: Cell::new(RayCounts::default()),
+            };
+            let mut out = TileOut {
+                origin: (x0, y0, tw),
+                pixels: &mut pixels,
+                source: source.as_mut(),
+            };
             let (mut radiance_taken, mut misses_taken) = (0u64, 0u64);
-            let eye = views[0].camera.position();
-            // Each sample's camera rays of a block, and then their shadow, mirror and
-            // refraction rays, travel the tree as packets. A pixel still sums its own samples
-            // in order, so the image does not depend on the grouping.
+            // The pixels that need the integrator, four at a time: each sample's camera rays,
+            // and then their shadow, mirror and refraction rays, travel the tree as packets.
+            // A pixel still sums its own samples in order, so the image does not depend on the
+            // grouping. Pixels of a target view known without a ray are set on the way: where
+            // every source sample around missed (the background), or, under
+            // `"reproject-radiance"`, the radiance that landed there.
+            let mut pending: SmallVec<[Lane; LANES]> = SmallVec::new();
             for by in (y0..y1).step_by(block_h) {
                 for bx in (x0..x1).step_by(block_w) {
-                    let mut lanes: SmallVec<[(usize, usize, usize); LANES]> = SmallVec::new();
-                    for v in 0..views.len() {
+                    for (v, view) in views.iter().enumerate() {
                         for y in by..(by + block_h).min(y1) {
                             for x in bx..(bx + block_w).min(x1) {
-                                lanes.push((v, x, y));
-                            }
-                        }
-                    }
-                    // A target view decides per pixel what it may reuse.
-                    let reuse: SmallVec<[Option<PixelReuse>; LANES]> = lanes
-                        .iter()
-                        .map(|&(v, x, y)| match views[v].role {
-                            ViewRole::Target(r) => r.pixel(x, y),
-                            _ => None,
-                        })
-                        .collect();
-                    // Whole pixels known without a ray: where every source sample around missed
-                    // (the background), or, under `"reproject-radiance"`, the mean radiance of
-                    // the samples that landed there.
-                    let fixed: SmallVec<[Option<Vec3>; LANES]> = reuse
-                        .iter()
-                        .map(|p| match p {
-                            Some(PixelReuse::Miss) => {
-                                misses_taken += spp as u64;
-                                Some(integrator.settings.background)
-                            }
-                            Some(PixelReuse::Radiance(v)) => {
-                                radiance_taken += spp as u64;
-                                Some(*v)
-                            }
-                            _ => None,
-                        })
-                        .collect();
-                    let mut sums = [Vec3::ZERO; LANES];
-                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-                    let mut limits = [0.0; LANES];
-                    let mut radiance = [Vec3::ZERO; LANES];
-                    let mut records = [PrimaryRecord::NONE; LANES];
-                    let mut known = [None; LANES];
-                    let mut film_x = [0.0; LANES];
-                    for s in 0..spp {
-                        // The lanes that need the integrator, packed to the front.
-                        let mut m = 0;
-                        let mut slot = [usize::MAX; LANES];
-                        for (i, &(v, x, y)) in lanes.iter().enumerate() {
-                            if fixed[i].is_some() {
-                                continue;
-                            }
-                            let film = &views[v].film;
-                            let seed = [(y * w + x) as u32, film.frame, film.eye_seed];
-                            let o = pixel_sample(s, spp, seed);
-                            let f = Vec2::new(x as f32 + o.x, y as f32 + o.y);
-                            let (ray, limit) = views[v].camera.ray(f.x, f.y);
-                            let hit = match &reuse[i] {
-                                Some(PixelReuse::Hits(h)) => h.verify(&ray, limit, geometry),
-                                _ => None,
-                            };
-                            (rays[m], limits[m], known[m], film_x[m]) = (ray, limit, hit, o.x);
-                            slot[m] = i;
-                            m += 1;
-                        }
-                        if m == 0 {
-                            continue;
-                        }
-                        let primary = match views[0].role {
-                            ViewRole::Plain => Primary::Trace,
-                            ViewRole::Source(_) => Primary::Record(&mut records[..m]),
-                            ViewRole::Target(_) => Primary::Known(&known[..m]),
-                        };
-                        integrator.radiance_packet(
-                            &rays[..m],
-                            &limits[..m],
-                            primary,
-                            &counts,
-                            &mut radiance[..m],
-                        );
-                        for (&i, r) in slot[..m].iter().zip(&radiance[..m]) {
-                            sums[i] += *r;
-                        }
-                        if let Some(source) = &mut source {
-                            for (k, &i) in slot[..m].iter().enumerate() {
-                                let (_, x, y) = lanes[i];
-                                let p = records[k].point;
-                                let sample = Sample {
-                                    film_x: film_x[k],
-                                    depth: views[0].camera.depth(p),
-                                    distance: p.distance(eye),
+                                let reuse = match view.role {
+                                    ViewRole::Target(r) => r.pixel(x, y),
+                                    _ => None,
                                 };
-                                source.add(
-                                    (y - y0) * tw + (x - x0),
-                                    sample,
-                                    &records[k],
-                                    radiance[k],
-                                );
+                                let fixed = match reuse {
+                                    Some(PixelReuse::Miss) => {
+                                        misses_taken += spp as u64;
+                                        integrator.settings.background
+                                    }
+                                    Some(PixelReuse::Radiance(v)) => {
+                                        radiance_taken += spp as u64;
+                                        v
+                                    }
+                                    _ => {
+                                        pending.push(Lane {
+                                            view: v,
+                                            x,
+                                            y,
+                                            reuse,
+                                        });
+                                        if pending.len() == LANES {
+                                            packets.trace(&pending, &mut out);
+                                            pending.clear();
+                                        }
+                                        continue;
+                                    }
+                                };
+                                out.pixels[v][(y - y0) * tw + (x - x0)] = fixed;
                             }
                         }
-                    }
-                    for (i, &(v, x, y)) in lanes.iter().enumerate() {
-                        pixels[v][(y - y0) * tw + (x - x0)] =
-                            fixed[i].unwrap_or(sums[i] / spp as f32);
                     }
                 }
             }
+            if !pending.is_empty() {
+                packets.trace(&pending, &mut out);
+            }
+            let counts = packets.counts;
             for v in 0..views.len() {
                 on_tile(v);
             }
@@ -280,6 +231,96 @@ pub fn render_views<A: Intersect>(
         images,
         counts,
         source,
+    }
+}
+
+/// A pixel of a view waiting for the integrator, and what it may reuse.
+struct Lane<'a> {
+    view: usize,
+    x: usize,
+    y: usize,
+    reuse: Option<PixelReuse<'a>>,
+}
+
+/// Where a tile's pixels go: its origin and width, its pixels per view, and (for a source
+/// view) what other views reuse.
+struct TileOut<'a> {
+    origin: (usize, usize, usize),
+    pixels: &'a mut [Vec<Vec3>],
+    source: Option<&'a mut SourceTile>,
+}
+
+/// What tracing a packet of pixels needs.
+struct Packets<'a, 'i, A: Intersect> {
+    integrator: &'a Integrator<'i, A>,
+    views: &'a [ViewFilm<'a>],
+    spp: u32,
+    width: usize,
+    /// The first view's eye.
+    eye: Vec3,
+    counts: Cell<RayCounts>,
+}
+
+impl<A: Intersect> Packets<'_, '_, A> {
+    /// Traces every sample of up to `LANES` pixels as packets, and sets the pixels.
+    fn trace(&self, lanes: &[Lane], out: &mut TileOut) {
+        let (spp, w) = (self.spp, self.width);
+        let (x0, y0, tw) = out.origin;
+        let role = self.views[0].role;
+        let geometry = self.integrator.scene.geometry;
+        let mut sums = [Vec3::ZERO; LANES];
+        let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        let mut limits = [0.0; LANES];
+        let mut radiance = [Vec3::ZERO; LANES];
+        let mut records = [PrimaryRecord::NONE; LANES];
+        let mut known = [None; LANES];
+        let mut film_x = [0.0; LANES];
+        let n = lanes.len();
+        for s in 0..spp {
+            for (i, lane) in lanes.iter().enumerate() {
+                let view = &self.views[lane.view];
+                let film = &view.film;
+                let seed = [(lane.y * w + lane.x) as u32, film.frame, film.eye_seed];
+                let o = pixel_sample(s, spp, seed);
+                let f = Vec2::new(lane.x as f32 + o.x, lane.y as f32 + o.y);
+                let (ray, limit) = view.camera.ray(f.x, f.y);
+                let hit = match &lane.reuse {
+                    Some(PixelReuse::Hits(h)) => h.verify(&ray, limit, geometry),
+                    _ => None,
+                };
+                (rays[i], limits[i], known[i], film_x[i]) = (ray, limit, hit, o.x);
+            }
+            let primary = match role {
+                ViewRole::Plain => Primary::Trace,
+                ViewRole::Source(_) => Primary::Record(&mut records[..n]),
+                ViewRole::Target(_) => Primary::Known(&known[..n]),
+            };
+            self.integrator.radiance_packet(
+                &rays[..n],
+                &limits[..n],
+                primary,
+                &self.counts,
+                &mut radiance[..n],
+            );
+            for (sum, r) in sums.iter_mut().zip(&radiance[..n]) {
+                *sum += *r;
+            }
+            if let Some(source) = &mut out.source {
+                for (i, lane) in lanes.iter().enumerate() {
+                    let p = records[i].point;
+                    let sample = Sample {
+                        film_x: film_x[i],
+                        depth: self.views[0].camera.depth(p),
+                        distance: p.distance(self.eye),
+                    };
+                    let at = (lane.y - y0) * tw + (lane.x - x0);
+                    source.add(at, sample, &records[i], radiance[i]);
+                }
+            }
+        }
+        for (lane, sum) in lanes.iter().zip(sums) {
+            out.pixels[lane.view][(lane.y - y0) * tw + (lane.x - x0)] = sum / spp as f32;
+        }
     }
 }
 

@@ -69,7 +69,8 @@ pub(super) struct Cell {
     pub lit: u32,
     pub shadowed: u32,
     /// The landed radiance, each source pixel's mean weighted by the part of it that landed
-    /// here, the weights' sum, and the range of the samples' radiance per channel.
+    /// here, the weights' sum, and bounds of the samples' radiance per channel (a pixel's mean
+    /// give or take its spread).
     pub weight: f32,
     pub radiance: Vec3,
     pub radiance_lo: Vec3,
@@ -119,9 +120,9 @@ impl Cell {
         }
         if direct {
             self.weight += share;
-            self.radiance += share / f32::from(p.hits) * p.radiance;
-            self.radiance_lo = self.radiance_lo.min(p.radiance_lo);
-            self.radiance_hi = self.radiance_hi.max(p.radiance_hi);
+            self.radiance += share * p.radiance;
+            self.radiance_lo = self.radiance_lo.min(p.radiance - p.spread);
+            self.radiance_hi = self.radiance_hi.max(p.radiance + p.spread);
         } else {
             self.indirect = true;
         }
@@ -160,15 +161,16 @@ impl Cell {
 /// pixels) meets, `share` being the part of the span over it (1 for a point). A NaN span lands
 /// nowhere.
 pub(super) fn splat(row: &mut [Cell], from: f32, to: f32, mut add: impl FnMut(&mut Cell, f32)) {
-    let first = from.floor().max(0.0);
-    let last = (to.floor() + 1.0).min(row.len() as f32);
     // Written so that NaN (and an empty span) fails.
-    if !(first < last && from <= to) {
+    if !(from <= to && to >= 0.0 && from < row.len() as f32) {
         return;
     }
+    // Truncation is the floor of the non-negative values left (and, unlike `floor`, no call
+    // into libm on the baseline x86-64 target).
+    let first = if from > 0.0 { from as usize } else { 0 };
+    let last = (to as usize + 1).min(row.len());
     let length = to - from;
-    let first = first as usize;
-    for (k, cell) in row[first..last as usize].iter_mut().enumerate() {
+    for (k, cell) in row[first..last].iter_mut().enumerate() {
         let x = (first + k) as f32;
         let share = if length > 0.0 {
             (to.min(x + 1.0) - from.max(x)) / length
@@ -191,10 +193,9 @@ pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: 
             let direct = landing
                 .baseline
                 .is_some_and(|b| p.reach >= 0.0 && b <= LOBE_FRACTION * p.reach);
-            if p.edge[1] > 0 {
+            if let Some((first, n)) = p.edge_samples() {
                 // Across a depth edge: each sample lands where it moves to, and what lies
                 // between them is a hole. Their mean radiance mixes both sides.
-                let [first, n] = p.edge.map(|k| k as usize);
                 for e in &edges[first..first + n] {
                     let q = landing.a + landing.b * e.inv_depth;
                     let at = x + e.film_x + q;
@@ -280,7 +281,7 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
 /// `"reproject-radiance"`: pixel `x`'s landed radiance, where the pixel and its two row
 /// neighbours hold only hits that may stand for the target's, whose samples agree within
 /// `RADIANCE_SPREAD` per channel (a flat patch: which part of the pixel a sample covered does
-/// not matter). The pixel also needs its window to pass the rules and agree on every shadow.
+/// not matter). The pixel also needs its window to pass rules 1-3.
 fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     for c in &row[x - 1..=x + 1] {
@@ -295,36 +296,76 @@ fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
     flat.then(|| c.radiance / c.weight)
 }
 
-/// The plans of target rows `rows` from the cells and row windows of rows `halo` (`rows` and
-/// up to one row on each side), of which only columns `columns` may reuse (rule 3).
-pub(super) fn plan_rows(
-    cells: &[Cell],
-    windows: &[RowWindow],
-    (width, height): (usize, usize),
+/// The rows of cells and row windows a band works on: three, the rules' window, reused row
+/// after row so that they stay in the cache (a band's whole cells would not).
+#[derive(Default)]
+pub(super) struct Ring {
+    cells: Vec<Cell>,
+    windows: Vec<RowWindow>,
+}
+
+/// Row `y`'s place in a ring of three rows of `width`.
+fn ring_at(width: usize) -> impl Fn(usize, usize) -> usize {
+    move |y, x| (y % 3) * width + x
+}
+
+/// The plans of target rows `rows` of a film of `width` x `height`, of which only columns
+/// `columns` may reuse (rule 3): each row is planned from the source rows landed on it and on
+/// its neighbours.
+pub(super) fn plan_band(
+    source: &SourcePixels,
+    landing: &Landing,
     rows: Range<usize>,
-    halo: Range<usize>,
     columns: Range<usize>,
+    ring: &mut Ring,
 ) -> BandPlan {
+    let (width, height) = source.size();
     let mut band = BandPlan {
         plans: Vec::with_capacity(rows.len() * width),
         candidates: Vec::new(),
     };
-    let at = |y: usize, x: usize| (y - halo.start) * width + x;
+    ring.cells.resize(3 * width, Cell::default());
+    ring.windows.resize(3 * width, RowWindow::default());
+    let at = ring_at(width);
+    let radiance = landing.baseline.is_some();
+    let mut landed = rows.start.saturating_sub(WINDOW_Y)..rows.start.saturating_sub(WINDOW_Y);
     for y in rows {
-        for x in 0..width {
-            let inside = y >= WINDOW_Y
-                && y + WINDOW_Y < height
-                && x >= columns.start + WINDOW_X
-                && x + WINDOW_X < columns.end;
-            let plan = if inside {
-                plan_pixel(cells, windows, x, y, &at, &mut band.candidates)
-            } else {
-                Plan::Trace
-            };
-            band.plans.push(plan);
+        // Land the rows up to the one below this row.
+        while landed.end < (y + WINDOW_Y + 1).min(height) {
+            let k = at(landed.end, 0);
+            let row = &mut ring.cells[k..k + width];
+            row.fill(Cell::default());
+            land_row(source, landed.end, landing, row);
+            row_windows(row, radiance, &mut ring.windows[k..k + width]);
+            landed.end += 1;
         }
+        let ring_rows = (ring.cells.as_slice(), ring.windows.as_slice());
+        plan_row(ring_rows, &at, (y, (width, height)), &columns, &mut band);
     }
     band
+}
+
+/// Appends the plans of row `y` of a film of `width` x `height` to `band`, from the cells and
+/// row windows of rows `y - 1..=y + 1` (placed by `at`); only columns `columns` may reuse.
+pub(super) fn plan_row(
+    (cells, windows): (&[Cell], &[RowWindow]),
+    at: &impl Fn(usize, usize) -> usize,
+    (y, (width, height)): (usize, (usize, usize)),
+    columns: &Range<usize>,
+    band: &mut BandPlan,
+) {
+    for x in 0..width {
+        let inside = y >= WINDOW_Y
+            && y + WINDOW_Y < height
+            && x >= columns.start + WINDOW_X
+            && x + WINDOW_X < columns.end;
+        let plan = if inside {
+            plan_pixel(cells, windows, x, y, at, &mut band.candidates)
+        } else {
+            Plan::Trace
+        };
+        band.plans.push(plan);
+    }
 }
 
 /// Rules 1-4 for target pixel (x, y), inside the film's border and rule 3's strips.
@@ -347,9 +388,9 @@ fn plan_pixel(
         hits |= r.hits;
         overflow |= r.overflow;
     }
-    if lit & shadowed == 0
-        && let Some(v) = windows[at(y, x)].radiance
-    {
+    // The radiance's bound is its flatness: a shadow edge among the samples breaks it too, so
+    // the window's shadows need not agree (their bits are only reused on the hits below).
+    if let Some(v) = windows[at(y, x)].radiance {
         return Plan::Radiance(v);
     }
     // Rule 1 holds, so the candidate pixels hold samples: with no triangle among them, they

@@ -36,7 +36,7 @@ use super::camera::EyeCamera;
 use super::integrator::KnownHit;
 use crate::accel::{Hit, Ray, triangle};
 use crate::scene::pose::Geometry;
-use band::{BandPlan, Cell, Landing, Plan, RowWindow, WINDOW_Y, land_row, plan_rows, row_windows};
+use band::{BandPlan, Landing, Plan, Ring, plan_band};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -113,27 +113,13 @@ impl Reprojection {
         } else {
             0..width
         };
-        // Each thread keeps its cells and row windows from band to band: allocated afresh, a
-        // band's pages would be faulted in again each time.
+        // Each thread keeps its ring of rows from band to band.
         let bands = (0..height.div_ceil(band_rows))
             .into_par_iter()
-            .map_init(
-                || (Vec::<Cell>::new(), Vec::<RowWindow>::new()),
-                |(cells, windows), band| {
-                    let rows = band * band_rows..((band + 1) * band_rows).min(height);
-                    let halo =
-                        rows.start.saturating_sub(WINDOW_Y)..(rows.end + WINDOW_Y).min(height);
-                    cells.clear();
-                    cells.resize(halo.len() * width, Cell::default());
-                    windows.resize(halo.len() * width, RowWindow::default());
-                    for (k, y) in halo.clone().enumerate() {
-                        let row = &mut cells[k * width..(k + 1) * width];
-                        land_row(source, y, &landing, row);
-                        row_windows(row, radiance, &mut windows[k * width..(k + 1) * width]);
-                    }
-                    plan_rows(cells, windows, (width, height), rows, halo, columns.clone())
-                },
-            )
+            .map_init(Ring::default, |ring, band| {
+                let rows = band * band_rows..((band + 1) * band_rows).min(height);
+                plan_band(source, &landing, rows, columns.clone(), ring)
+            })
             .collect();
         Reprojection {
             width,

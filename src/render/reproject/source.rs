@@ -1,7 +1,7 @@
 //! What the source view keeps of each pixel for the views that reuse it: the pixel's camera
 //! samples folded into one record while the pixel is traced. A target view then reads one
-//! record per pixel whatever the samples per pixel (80 bytes, against 48 per sample when every
-//! sample was kept: 192 bytes a pixel at 4 spp, 768 at 16).
+//! record per pixel whatever the samples per pixel (64 bytes, one cache line, against 48 per
+//! sample when every sample was kept: 192 bytes a pixel at 4 spp, 768 at 16).
 
 use super::super::integrator::PrimaryRecord;
 use super::MAX_PARALLAX_SPREAD;
@@ -11,8 +11,9 @@ use glam::Vec3;
 /// pixels it lands near trace their camera rays (their candidates would be incomplete).
 pub const PIXEL_SLOTS: usize = 4;
 
-/// One source pixel's camera samples, folded.
+/// One source pixel's camera samples, folded (64 bytes, on a cache line of its own).
 #[derive(Clone, Copy, Debug)]
+#[repr(align(64))]
 pub struct SourcePixel {
     /// Smallest and largest inverse depth (1 / metres along the rig's axis) of the samples
     /// that hit: their parallax range in any other eye of the rig.
@@ -27,7 +28,7 @@ pub struct SourcePixel {
     pub(super) misses: u16,
     pub(super) prims: [u32; PIXEL_SLOTS],
     pub(super) distinct: u8,
-    /// More than `PIXEL_SLOTS` triangles were hit.
+    /// More than `PIXEL_SLOTS` triangles were hit: the pixel keeps its samples (`edge`).
     pub(super) overflow: bool,
     /// Lights some hit reached, and lights some hit was shadowed from.
     pub(super) lit: u32,
@@ -37,14 +38,16 @@ pub struct SourcePixel {
     /// `baseline / reach` of its lobe width. Negative where a hit's radiance cannot stand for
     /// another view's (mirror, glass, BLEND, MASK: `PrimaryRecord::lobe`).
     pub(super) reach: f32,
-    /// The hits' radiance summed, and its range per channel.
+    /// The hits' mean radiance, and how far any hit's radiance lies from it in any channel.
     pub(super) radiance: Vec3,
-    pub(super) radiance_lo: Vec3,
-    pub(super) radiance_hi: Vec3,
-    /// A pixel across a depth edge keeps its landing samples: `edge[0]..edge[0] + edge[1]` of
-    /// its tile's `EdgeSample`s (none elsewhere).
-    pub(super) edge: [u32; 2],
+    pub(super) spread: f32,
+    /// A pixel across a depth edge (or that hit more triangles than it holds) keeps its landing
+    /// samples: `edge..edge + landed()` of its tile's `EdgeSample`s. `u32::MAX` elsewhere.
+    pub(super) edge: u32,
 }
+
+/// `SourcePixel::edge` of a pixel that keeps no samples.
+const NO_EDGE: u32 = u32::MAX;
 
 /// A landing sample of a pixel across a depth edge: its film x within the pixel (0..1), its
 /// hit's inverse depth (0 for a miss, which lands at infinity) and triangle. The sample brings
@@ -83,9 +86,8 @@ impl Default for SourcePixel {
             shadowed: 0,
             reach: f32::INFINITY,
             radiance: Vec3::ZERO,
-            radiance_lo: Vec3::INFINITY,
-            radiance_hi: Vec3::NEG_INFINITY,
-            edge: [0, 0],
+            spread: 0.0,
+            edge: NO_EDGE,
         }
     }
 }
@@ -93,16 +95,22 @@ impl Default for SourcePixel {
 impl SourcePixel {
     /// Adds a camera sample: where it lies in the pixel along x (0..1), what its ray found,
     /// its radiance, and (for a hit) the hit's depth along the rig's axis and distance from the
-    /// eye.
-    pub fn add(&mut self, sample: Sample, record: &PrimaryRecord, radiance: Vec3) {
+    /// eye. Sums the hits' radiance, and keeps its range per channel in `range`.
+    pub(super) fn add(
+        &mut self,
+        sample: Sample,
+        record: &PrimaryRecord,
+        radiance: Vec3,
+        range: &mut [Vec3; 2],
+    ) {
         if record.through_cut_out {
             return;
         }
+        // Rounded down and up by truncation (x >= 0), not libm's floor and ceil.
         let x = sample.film_x.clamp(0.0, 1.0) * 255.0;
-        self.film_x = [
-            self.film_x[0].min(x.floor() as u8),
-            self.film_x[1].max(x.ceil() as u8),
-        ];
+        let below = x as u8;
+        let above = below + u8::from(f32::from(below) < x);
+        self.film_x = [self.film_x[0].min(below), self.film_x[1].max(above)];
         let Some(hit) = record.hit else {
             self.misses = self.misses.saturating_add(1);
             return;
@@ -128,8 +136,17 @@ impl SourcePixel {
         };
         self.reach = self.reach.min(reach);
         self.radiance += radiance;
-        self.radiance_lo = self.radiance_lo.min(radiance);
-        self.radiance_hi = self.radiance_hi.max(radiance);
+        *range = [range[0].min(radiance), range[1].max(radiance)];
+    }
+
+    /// Samples that landed: hits and misses.
+    pub(super) fn landed(&self) -> usize {
+        usize::from(self.hits) + usize::from(self.misses)
+    }
+
+    /// The samples it keeps, if any: `(first, count)` in its tile's `EdgeSample`s.
+    pub(super) fn edge_samples(&self) -> Option<(usize, usize)> {
+        (self.edge != NO_EDGE).then(|| (self.edge as usize, self.landed()))
     }
 }
 
@@ -155,6 +172,8 @@ impl SourcePixel {
 /// One tile of source pixels, row-major, as the tile is traced.
 pub struct SourceTile {
     pixels: Vec<SourcePixel>,
+    /// Each pixel's range of hit radiance per channel, until the tile is done.
+    ranges: Vec<[Vec3; 2]>,
     /// Every landing sample of the tile, `spp` per pixel, until the tile is done.
     samples: Vec<EdgeSample>,
     spp: usize,
@@ -166,6 +185,7 @@ impl SourceTile {
     pub fn new(pixels: usize, spp: usize, edge_test: EdgeTest) -> SourceTile {
         SourceTile {
             pixels: vec![SourcePixel::default(); pixels],
+            ranges: vec![[Vec3::INFINITY, Vec3::NEG_INFINITY]; pixels],
             samples: vec![EdgeSample::default(); pixels * spp],
             spp,
             edge_test,
@@ -176,9 +196,9 @@ impl SourceTile {
     /// Adds a camera sample of pixel `i` (see `SourcePixel::add`).
     pub fn add(&mut self, i: usize, sample: Sample, record: &PrimaryRecord, radiance: Vec3) {
         let p = &mut self.pixels[i];
-        let landed = usize::from(p.hits) + usize::from(p.misses);
-        p.add(sample, record, radiance);
-        if usize::from(p.hits) + usize::from(p.misses) > landed && landed < self.spp {
+        let landed = p.landed();
+        p.add(sample, record, radiance, &mut self.ranges[i]);
+        if p.landed() > landed && landed < self.spp {
             let (inv_depth, prim) = match record.hit {
                 Some(h) => (1.0 / sample.depth, h.prim),
                 None => (0.0, 0),
@@ -198,19 +218,22 @@ impl SourceTile {
     fn finish(mut self) -> (Vec<SourcePixel>, Vec<EdgeSample>) {
         let mut edges = Vec::new();
         let test = self.edge_test;
-        for (i, p) in self.pixels.iter_mut().enumerate() {
-            let mut lo = p.inv_depth[0];
-            if p.misses > 0 && test.misses_land {
-                lo = 0.0;
+        for ((i, p), [lo, hi]) in self.pixels.iter_mut().enumerate().zip(self.ranges) {
+            if p.hits > 0 {
+                p.radiance /= f32::from(p.hits);
+                p.spread = (hi - p.radiance).max(p.radiance - lo).max_element();
             }
-            let spread = test.parallax_per_inv_depth * (p.inv_depth[1] - lo);
-            if p.hits > 0 && (spread > MAX_PARALLAX_SPREAD || p.overflow) {
-                let n = (usize::from(p.hits) + usize::from(p.misses)).min(self.spp);
-                p.edge = [edges.len() as u32, n as u32];
+            let mut nearest = p.inv_depth[0];
+            if p.misses > 0 && test.misses_land {
+                nearest = 0.0;
+            }
+            let parallax = test.parallax_per_inv_depth * (p.inv_depth[1] - nearest);
+            if p.hits > 0 && (parallax > MAX_PARALLAX_SPREAD || p.overflow) {
+                let n = p.landed().min(self.spp);
+                p.edge = edges.len() as u32;
                 edges.extend_from_slice(&self.samples[i * self.spp..i * self.spp + n]);
             }
         }
-        self.samples = Vec::new();
         (self.pixels, edges)
     }
 }
@@ -269,3 +292,6 @@ impl SourcePixels {
         })
     }
 }
+
+// A record per cache line: `land_row` waits on its loads.
+const _: () = assert!(std::mem::size_of::<SourcePixel>() == 64);

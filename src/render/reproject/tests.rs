@@ -1,5 +1,6 @@
 //! The reuse rules on grids of cells filled by hand, without cameras.
 
+use super::band::{Cell, Landing, RowWindow, plan_row, row_windows};
 use super::source::SourcePixel;
 use super::*;
 
@@ -31,7 +32,8 @@ fn hit_pixel(prim: u32) -> SourcePixel {
         depth: 1.0,
         distance: 1.0,
     };
-    p.add(sample, &record, Vec3::ONE);
+    let mut range = [Vec3::ONE; 2];
+    p.add(sample, &record, Vec3::ONE, &mut range);
     p
 }
 
@@ -70,10 +72,18 @@ impl Grid {
         for (row, out) in self.cells.chunks(w).zip(windows.chunks_mut(w)) {
             row_windows(row, radiance, out);
         }
+        let mut band = BandPlan {
+            plans: Vec::new(),
+            candidates: Vec::new(),
+        };
+        for y in 0..h {
+            let rows = (self.cells.as_slice(), windows.as_slice());
+            plan_row(rows, &|y, x| y * w + x, (y, (w, h)), &(0..w), &mut band);
+        }
         Reprojection {
             width: w,
             band_rows: h,
-            bands: vec![plan_rows(&self.cells, &windows, (w, h), 0..h, 0..h, 0..w)],
+            bands: vec![band],
         }
     }
 }
