@@ -142,7 +142,7 @@ impl GpuFrames {
         Ok(Rendered {
             images,
             counts,
-            samples: Vec::new(),
+            source: None,
         })
     }
 }
