@@ -253,8 +253,8 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
             .iter()
             .any(Cell::covered)
     };
-    for x in WINDOW_X..width.saturating_sub(WINDOW_X) {
-        let window = &row[x - WINDOW_X..=x + WINDOW_X];
+    for x in 0..width {
+        let window = &row[around(x, WINDOW_X, width)];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         let (mut lit, mut shadowed) = (0, 0);
         for c in window {
@@ -264,9 +264,9 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
             shadowed |= c.shadowed;
         }
         let spread = hi - lo;
-        let ok = (x - WINDOW_X..=x + WINDOW_X).all(covered)
+        let ok = around(x, WINDOW_X, width).all(covered)
             && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
-        let candidates = &row[x - CANDIDATE_X..=x + CANDIDATE_X];
+        let candidates = &row[around(x, CANDIDATE_X, width)];
         out[x] = RowWindow {
             ok,
             hits: candidates.iter().any(|c| c.distinct > 0),
@@ -284,7 +284,7 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
 /// not matter). The pixel also needs its window to pass rules 1-3.
 fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-    for c in &row[x - 1..=x + 1] {
+    for c in &row[around(x, 1, row.len())] {
         if c.weight <= 0.0 || c.indirect || c.miss {
             return None;
         }
@@ -345,8 +345,16 @@ pub(super) fn plan_band(
     band
 }
 
+/// Positions `x - half..=x + half`, cut by `0..len`: the film's border cuts the rules'
+/// windows, since nothing lies beyond it in either view (rule 3's strip holds what lies beyond
+/// the source's edge on the side where points move in).
+fn around(x: usize, half: usize, len: usize) -> std::ops::RangeInclusive<usize> {
+    x.saturating_sub(half)..=(x + half).min(len - 1)
+}
+
 /// Appends the plans of row `y` of a film of `width` x `height` to `band`, from the cells and
-/// row windows of rows `y - 1..=y + 1` (placed by `at`); only columns `columns` may reuse.
+/// row windows of rows `y - 1..=y + 1` (placed by `at`); only columns `columns` may reuse, and
+/// pixels as close to a strip of rule 3 as their window is wide trace.
 pub(super) fn plan_row(
     (cells, windows): (&[Cell], &[RowWindow]),
     at: &impl Fn(usize, usize) -> usize,
@@ -354,13 +362,19 @@ pub(super) fn plan_row(
     columns: &Range<usize>,
     band: &mut BandPlan,
 ) {
+    let margin = |strip: bool| if strip { WINDOW_X } else { 0 };
+    let first = columns.start + margin(columns.start > 0);
+    let end = columns.end.saturating_sub(margin(columns.end < width));
     for x in 0..width {
-        let inside = y >= WINDOW_Y
-            && y + WINDOW_Y < height
-            && x >= columns.start + WINDOW_X
-            && x + WINDOW_X < columns.end;
-        let plan = if inside {
-            plan_pixel(cells, windows, x, y, at, &mut band.candidates)
+        let plan = if (first..end).contains(&x) {
+            plan_pixel(
+                cells,
+                windows,
+                (x, y),
+                (width, height),
+                at,
+                &mut band.candidates,
+            )
         } else {
             Plan::Trace
         };
@@ -368,17 +382,17 @@ pub(super) fn plan_row(
     }
 }
 
-/// Rules 1-4 for target pixel (x, y), inside the film's border and rule 3's strips.
+/// Rules 1-4 for target pixel (x, y) of a film of `width` x `height`, outside rule 3's strips.
 fn plan_pixel(
     cells: &[Cell],
     windows: &[RowWindow],
-    x: usize,
-    y: usize,
+    (x, y): (usize, usize),
+    (width, height): (usize, usize),
     at: &impl Fn(usize, usize) -> usize,
     candidates: &mut Vec<u32>,
 ) -> Plan {
     let (mut lit, mut shadowed, mut hits, mut overflow) = (0u32, 0u32, false, false);
-    for cy in y - WINDOW_Y..=y + WINDOW_Y {
+    for cy in around(y, WINDOW_Y, height) {
         let r = &windows[at(cy, x)];
         if !r.ok {
             return Plan::Trace;
@@ -402,8 +416,9 @@ fn plan_pixel(
         return Plan::Trace;
     }
     let first = candidates.len();
-    for cy in y - WINDOW_Y..=y + WINDOW_Y {
-        for c in &cells[at(cy, x - CANDIDATE_X)..=at(cy, x + CANDIDATE_X)] {
+    let xs = around(x, CANDIDATE_X, width);
+    for cy in around(y, WINDOW_Y, height) {
+        for c in &cells[at(cy, *xs.start())..=at(cy, *xs.end())] {
             for &prim in &c.prims[..c.distinct as usize] {
                 if !candidates[first..].contains(&prim) {
                     candidates.push(prim);

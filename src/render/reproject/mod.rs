@@ -18,8 +18,9 @@
 //!    parallaxes, and a hole can hide between samples only where it is narrower than that. A
 //!    slanted floor, whose parallax changes from row to row but smoothly along a row, reuses.
 //! 3. **Not at the frame edge the source cannot see.** Near objects shift sideways between the
-//!    views; a strip as wide as the largest parallax of the scene's nearest point (from its
-//!    bounds) on that side of the target film is traced.
+//!    views; a strip as wide as the largest parallax of the nearest point the source saw, on
+//!    that side of the target film, is traced. The film's own border cuts the windows instead:
+//!    nothing lies beyond it in either view.
 //! 4. **A verified hit.** The triangles hit by what landed within one pixel of the target
 //!    pixel are the candidates (where there are more than a pixel holds, it traces); the
 //!    target sample's own ray is intersected with each (the same watertight test the tree

@@ -91,12 +91,32 @@ impl Grid {
 #[test]
 fn a_step_in_parallax_refuses_reuse_around_it_and_only_there() {
     let g = Grid::new(20, 5, |x, _| if x < 10 { 0.0 } else { -3.0 }).plan(false);
-    for x in 2..18 {
+    for x in 0..20 {
         let near_step = (8..=11).contains(&x);
         assert_eq!(g.pixel(x, 2).is_none(), near_step, "x={x}");
     }
-    // The frame border is traced.
-    assert!(g.pixel(1, 2).is_none() && g.pixel(5, 0).is_none() && g.pixel(5, 4).is_none());
+    // The film's border cuts the windows: its pixels reuse.
+    assert!(g.pixel(0, 2).is_some() && g.pixel(5, 0).is_some() && g.pixel(5, 4).is_some());
+}
+
+#[test]
+fn pixels_in_or_near_the_edge_strip_trace() {
+    let g = Grid::new(20, 5, |_, _| 0.0);
+    let mut windows = vec![RowWindow::default(); 20 * 5];
+    for (row, out) in g.cells.chunks(20).zip(windows.chunks_mut(20)) {
+        row_windows(row, false, out);
+    }
+    let mut band = BandPlan {
+        plans: Vec::new(),
+        candidates: Vec::new(),
+    };
+    let rows = (g.cells.as_slice(), windows.as_slice());
+    plan_row(rows, &|y, x| y * 20 + x, (2, (20, 5)), &(3..20), &mut band);
+    let traced: Vec<bool> = band.plans.iter().map(|p| *p == Plan::Trace).collect();
+    // The strip (0..3) and the window's half-width beside it trace; the film's right border
+    // does not.
+    assert_eq!(traced[..6], [true, true, true, true, true, false]);
+    assert!(!traced[19]);
 }
 
 #[test]
