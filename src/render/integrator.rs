@@ -39,6 +39,18 @@ impl RayCounts {
         self.primary + self.secondary + self.shadow
     }
 
+    /// Each count divided by `parts`: one view's share of a pass that traced several.
+    pub fn share(&self, parts: u64) -> RayCounts {
+        RayCounts {
+            primary: self.primary / parts,
+            secondary: self.secondary / parts,
+            shadow: self.shadow / parts,
+            reused_primary: self.reused_primary / parts,
+            reused_shadow: self.reused_shadow / parts,
+            reused_radiance: self.reused_radiance / parts,
+        }
+    }
+
     pub fn add(&mut self, o: &RayCounts) {
         self.primary += o.primary;
         self.secondary += o.secondary;

@@ -4,7 +4,7 @@
 
 use super::rig_plan::FrameRig;
 use super::trace::FrameStats;
-use crate::render::View;
+use crate::render::{RayCounts, View};
 
 /// The frame log every run writes beside the outputs.
 pub const FRAME_LOG: &str = "frame-log.csv";
@@ -15,12 +15,15 @@ pub const FRAME_LOG: &str = "frame-log.csv";
 /// `reused_samples`: camera samples that took another view's hit under `eye_reuse =
 /// "reproject"`, `traced_samples`: those that traced their camera ray, `reused_shadow_rays`:
 /// shadow answers taken with the reused hits, `reused_radiance_samples`: reused samples that
-/// took the radiance too under `"reproject-radiance"`; all per frame). Then the frame's rig and
+/// took the radiance too under `"reproject-radiance"`; all per frame; then the rays traced for
+/// the right eye, in every mode: `right_camera_rays` (under reuse, the samples that traced:
+/// holes and unverified hits), `right_secondary_rays` (mirror, glass and BLEND rays: under reuse,
+/// the view-dependent part) and `right_shadow_rays`). Then the frame's rig and
 /// depth budget (stereo rigs; empty for mono): `convergence_m` and `interaxial_m` as traced,
 /// the nearest and farthest visible point (`near_m`, `far_m`) with their parallax in pixels and
 /// in percent of the width (negative in front of the screen), `over_budget` (1 when the frame
 /// leaves `[stereo]`'s depth budget), and the floating-window borders in pixels.
-pub const FRAME_LOG_COLUMNS: [&str; 25] = [
+pub const FRAME_LOG_COLUMNS: [&str; 28] = [
     "frame",
     "object",
     "action",
@@ -35,6 +38,9 @@ pub const FRAME_LOG_COLUMNS: [&str; 25] = [
     "traced_samples",
     "reused_shadow_rays",
     "reused_radiance_samples",
+    "right_camera_rays",
+    "right_secondary_rays",
+    "right_shadow_rays",
     "convergence_m",
     "interaxial_m",
     "near_m",
@@ -59,6 +65,13 @@ pub fn rows(frame: u32, stats: &FrameStats) -> Vec<Vec<String>> {
         }] += secs;
     }
     let rig = rig_columns(stats.rig.as_ref());
+    let right = stats.view_rays.iter().filter(|(v, _)| *v == View::RIGHT).fold(
+        RayCounts::default(),
+        |mut sum, (_, rays)| {
+            sum.add(rays);
+            sum
+        },
+    );
     stats
         .update
         .iter()
@@ -78,6 +91,9 @@ pub fn rows(frame: u32, stats: &FrameStats) -> Vec<Vec<String>> {
                 stats.rays.primary.to_string(),
                 stats.rays.reused_shadow.to_string(),
                 stats.rays.reused_radiance.to_string(),
+                right.primary.to_string(),
+                right.secondary.to_string(),
+                right.shadow.to_string(),
             ];
             columns.extend(rig.iter().cloned());
             columns

@@ -28,6 +28,8 @@ pub struct FrameStats {
     pub update: Vec<LogRow>,
     /// Tracing time per view, in the order traced.
     pub view_seconds: Vec<(View, f64)>,
+    /// The rays of each view, in the same order (under `paired`, half the pass's each).
+    pub view_rays: Vec<(View, RayCounts)>,
     pub rays: RayCounts,
     /// The rig the frame was traced with and its depth budget (stereo rigs).
     pub rig: Option<FrameRig>,
@@ -425,6 +427,8 @@ impl<'p> FrameTracer<'p> {
                     mask_window(&mut image, view_window(view.offset_fraction(), r.window));
                 }
                 stats.view_seconds.push((view, secs));
+                let share = rendered.counts.share(films.len() as u64);
+                stats.view_rays.push((view, share));
                 images.push((view, image));
             }
         }

@@ -242,6 +242,7 @@ pub fn sweep(
             let reference = &references[reference_of[ci]].1;
             let full = full_of[ci].map(|i| &references[i].1);
             let s = &mut samples[ci];
+            let pixels = f64::from(p.spec.render.width) * f64::from(p.spec.render.height);
             memory::reset_peak();
             trace_frames(p, frames, |k, views, stats| {
                 s.update_s[k].push(stats.update_seconds());
@@ -256,6 +257,11 @@ pub fn sweep(
                         _ => {}
                     }
                 }
+                let right: u64 = (stats.view_rays.iter())
+                    .filter(|(view, _)| *view == View::RIGHT)
+                    .map(|(_, rays)| rays.total())
+                    .sum();
+                s.right_rays_per_pixel[k] = right as f64 / pixels;
                 if r == 0 {
                     s.eyes[k] = views
                         .iter()
@@ -297,6 +303,7 @@ struct Samples {
     left_s: Vec<Vec<f64>>,
     right_s: Vec<Vec<f64>>,
     rays: Vec<u64>,
+    right_rays_per_pixel: Vec<f64>,
     eyes: Vec<Vec<(String, EyeError)>>,
     peak: Option<usize>,
 }
@@ -310,6 +317,7 @@ impl Samples {
             left_s: vec![Vec::new(); frames],
             right_s: vec![Vec::new(); frames],
             rays: vec![0; frames],
+            right_rays_per_pixel: vec![0.0; frames],
             eyes: vec![Vec::new(); frames],
             peak: None,
         }
@@ -330,6 +338,7 @@ impl Samples {
                 rays: self.rays[k],
                 left_s: median_or_zero(&self.left_s[k]),
                 right_s: median_or_zero(&self.right_s[k]),
+                right_rays_per_pixel: self.right_rays_per_pixel[k],
                 eyes,
             })
             .collect();

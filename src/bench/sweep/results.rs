@@ -48,6 +48,8 @@ pub struct FrameRow {
     /// Tracing of the left and the right eye (medians; zero for a view not traced).
     pub left_s: f64,
     pub right_s: f64,
+    /// Rays traced for the right eye per pixel (camera, secondary and shadow rays).
+    pub right_rays_per_pixel: f64,
     pub eyes: Vec<(String, EyeError)>,
 }
 
@@ -113,6 +115,11 @@ impl CombinationResult {
         )
     }
 
+    /// Rays traced for the right eye per pixel, the mean over frames.
+    pub fn right_rays_per_pixel(&self) -> f64 {
+        mean(self.frames.iter().map(|f| f.right_rays_per_pixel))
+    }
+
     /// The right eye's PSNR against its own full trace, the mean over frames (infinite where
     /// reuse changed nothing).
     pub fn right_psnr_vs_full(&self) -> f64 {
@@ -136,7 +143,7 @@ impl fmt::Display for Table<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8} {:>6} {:>11}",
+            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8} {:>6} {:>8} {:>11}",
             "combination",
             "s/frame",
             "Mrays/s",
@@ -144,12 +151,13 @@ impl fmt::Display for Table<'_> {
             "mean |err|",
             "PSNR",
             "R/L",
+            "R ray/px",
             "R vs full"
         )?;
         for r in self.0 {
             write!(
                 f,
-                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2} {:>6.3} {:>8.2} dB",
+                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2} {:>6.3} {:>8.2} {:>8.2} dB",
                 r.label(),
                 r.frame_seconds(),
                 r.mrays_per_second(),
@@ -158,6 +166,7 @@ impl fmt::Display for Table<'_> {
                 r.mean_abs_error(),
                 r.psnr(),
                 r.right_over_left(),
+                r.right_rays_per_pixel(),
                 r.right_psnr_vs_full()
             )?;
         }
@@ -166,7 +175,7 @@ impl fmt::Display for Table<'_> {
 }
 
 /// Columns of `results.csv` after the swept keys.
-pub const RESULTS_COLUMNS: [&str; 17] = [
+pub const RESULTS_COLUMNS: [&str; 18] = [
     "frame",
     "update_s",
     "trace_s",
@@ -182,12 +191,13 @@ pub const RESULTS_COLUMNS: [&str; 17] = [
     "percent_over",
     "left_s",
     "right_s",
+    "right_rays_per_pixel",
     "psnr_vs_full",
     "percent_over_vs_full",
 ];
 
 /// Columns of `summary.csv` after the swept keys.
-pub const SUMMARY_COLUMNS: [&str; 11] = [
+pub const SUMMARY_COLUMNS: [&str; 12] = [
     "label",
     "frame_s",
     "update_s",
@@ -198,6 +208,7 @@ pub const SUMMARY_COLUMNS: [&str; 11] = [
     "percent_over",
     "pareto",
     "right_over_left",
+    "right_rays_per_pixel",
     "right_psnr_vs_full",
 ];
 
@@ -246,6 +257,7 @@ pub(super) fn write_files(
                         format!("{:.4}", e.percent_over),
                         format!("{:.6}", f.left_s),
                         format!("{:.6}", f.right_s),
+                        format!("{:.3}", f.right_rays_per_pixel),
                         format!("{:.2}", e.psnr_vs_full),
                         format!("{:.4}", e.percent_over_vs_full),
                     ],
@@ -288,6 +300,7 @@ pub(super) fn write_files(
                     format!("{:.4}", r.percent_over()),
                     front.contains(&i).to_string(),
                     format!("{:.4}", r.right_over_left()),
+                    format!("{:.3}", r.right_rays_per_pixel()),
                     format!("{:.2}", r.right_psnr_vs_full()),
                 ],
             )
