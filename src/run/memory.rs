@@ -23,9 +23,12 @@ pub const BYTES_PER_TRIANGLE: u64 = 400;
 /// pixel from 1024x1024 to 2048x2048, and a peak of 4.10 GiB at 8192x8192 (32.8 per view pixel,
 /// the process's own memory included).
 const BYTES_PER_VIEW_PIXEL: u64 = 36;
-/// Per camera sample of the source view under `eye_reuse = "reproject"`: the kept hit and its
-/// cell. Measured: 70 bytes per added sample at 4 spp (2048x2048 against 1024x1024).
-const BYTES_PER_KEPT_SAMPLE: u64 = 72;
+/// Under `eye_reuse = "reproject"`, per pixel of the source view (its 64-byte record and the
+/// target's plan) and per camera sample (the 12 bytes a pixel across a depth edge keeps of each,
+/// every sample counted). Measured on `pipelines/diffuse.toml` against `off`: 119 bytes per
+/// added pixel at 4 spp (2048x2048 against 1024x1024), 256 at 16 spp (1024x1024).
+const BYTES_PER_KEPT_PIXEL: u64 = 80;
+const BYTES_PER_KEPT_SAMPLE: u64 = 12;
 /// Per pixel of each frame a whole-range wobble GIF holds until the end: its RGB frame and the
 /// RGBA copy the encoder quantises.
 const BYTES_PER_HELD_PIXEL: u64 = 7;
@@ -47,7 +50,7 @@ impl MemoryEstimate {
         let views = views_needed(p, &p.rig_views(), 0).len() as u64;
         let kept = match r.eye_reuse {
             EyeReuse::Reproject | EyeReuse::ReprojectRadiance => {
-                pixels * u64::from(r.spp) * BYTES_PER_KEPT_SAMPLE
+                pixels * (BYTES_PER_KEPT_PIXEL + u64::from(r.spp) * BYTES_PER_KEPT_SAMPLE)
             }
             EyeReuse::Off | EyeReuse::Paired => 0,
         };
