@@ -62,7 +62,7 @@ pub use packet::LANES;
 pub use params::{BuildParams, SplitMethod};
 pub use refit::RefitTree;
 pub use stats::TreeStats;
-pub use traverse::WalkCounts;
+pub use traverse::{WalkCounts, prefetch};
 pub use tree::{KdTree, MAX_DEPTH, Node, TreeArrays};
 pub use update::{Action, LogRow, REBUILD_SAMPLES_PER_TRIANGLE, Reason, UpdateMode, Updater};
 

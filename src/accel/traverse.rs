@@ -95,11 +95,12 @@ pub(super) trait Visit {
     fn inner(&mut self);
 }
 
-/// Asks the cache for a node the walk may visit next. The below child sits next to its parent;
-/// the above child is a subtree away and, on a tree larger than the cache, a miss the walk would
-/// otherwise wait for when it goes there (about half the time).
+/// Asks the cache for what `p` points to, ahead of its use. The walk asks for a node it may
+/// visit next: the below child sits next to its parent; the above child is a subtree away and,
+/// on a tree larger than the cache, a miss the walk would otherwise wait for when it goes there
+/// (about half the time).
 #[inline(always)]
-pub(super) fn prefetch<T>(p: &T) {
+pub fn prefetch<T>(p: &T) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch is a hint: it reads nothing into the program and cannot fault.
     unsafe {

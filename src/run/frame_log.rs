@@ -65,13 +65,14 @@ pub fn rows(frame: u32, stats: &FrameStats) -> Vec<Vec<String>> {
         }] += secs;
     }
     let rig = rig_columns(stats.rig.as_ref());
-    let right = stats.view_rays.iter().filter(|(v, _)| *v == View::RIGHT).fold(
-        RayCounts::default(),
-        |mut sum, (_, rays)| {
+    let right = stats
+        .view_rays
+        .iter()
+        .filter(|(v, _)| *v == View::RIGHT)
+        .fold(RayCounts::default(), |mut sum, (_, rays)| {
             sum.add(rays);
             sum
-        },
-    );
+        });
     stats
         .update
         .iter()

@@ -5,6 +5,7 @@
 
 use super::source::{SourcePixel, SourcePixels};
 use super::{LOBE_FRACTION, MAX_PARALLAX_SPREAD, RADIANCE_SPREAD};
+use crate::accel::prefetch;
 use glam::Vec3;
 use std::ops::Range;
 
@@ -108,9 +109,15 @@ impl Cell {
         ];
     }
 
-    /// Adds the hits of source pixel `p`, of which the part `share` lands here; `direct` says
-    /// whether their radiance may stand for the target's.
-    pub fn add_hits(&mut self, p: &SourcePixel, parallax: [f32; 2], share: f32, direct: bool) {
+    /// Adds the hits of source pixel `p`, of which the part `share` lands here; `bounds` are
+    /// the bounds of their radiance where it may stand for the target's.
+    pub fn add_hits(
+        &mut self,
+        p: &SourcePixel,
+        parallax: [f32; 2],
+        share: f32,
+        bounds: Option<[Vec3; 2]>,
+    ) {
         self.land(parallax);
         self.lit |= p.lit;
         self.shadowed |= p.shadowed;
@@ -118,11 +125,11 @@ impl Cell {
         for &prim in &p.prims[..p.distinct as usize] {
             self.add_prim(prim);
         }
-        if direct {
+        if let Some([lo, hi]) = bounds {
             self.weight += share;
             self.radiance += share * p.radiance;
-            self.radiance_lo = self.radiance_lo.min(p.radiance - p.spread);
-            self.radiance_hi = self.radiance_hi.max(p.radiance + p.spread);
+            self.radiance_lo = self.radiance_lo.min(lo);
+            self.radiance_hi = self.radiance_hi.max(hi);
         } else {
             self.indirect = true;
         }
@@ -187,7 +194,13 @@ pub(super) fn splat(row: &mut [Cell], from: f32, to: f32, mut add: impl FnMut(&m
 /// point's row). A source pixel's samples lie on a span of its width, and its hits move by
 /// their parallax range: they land on that span of the target row, widened by the range.
 pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: &mut [Cell]) {
-    for (x0, pixels, edges) in source.row(y) {
+    let mut segments = source.row(y).peekable();
+    while let Some((x0, pixels, edges)) = segments.next() {
+        // The row's next tile lies elsewhere in memory: ask for it while this one lands (the
+        // loads of the records were a fifth of the landing's time).
+        if let Some((_, next, _)) = segments.peek() {
+            next.iter().for_each(prefetch);
+        }
         for (i, p) in pixels.iter().enumerate() {
             let x = (x0 + i) as f32;
             let direct = landing
@@ -215,8 +228,9 @@ pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: 
                     landing.a + landing.b * p.inv_depth[1],
                 );
                 let parallax = [p0.min(p1), p0.max(p1)];
+                let bounds = direct.then(|| [p.radiance - p.spread, p.radiance + p.spread]);
                 splat(row, from + parallax[0], to + parallax[1], |c, w| {
-                    c.add_hits(p, parallax, w, direct)
+                    c.add_hits(p, parallax, w, bounds)
                 });
             }
             if p.misses > 0 && landing.misses {

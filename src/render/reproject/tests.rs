@@ -51,7 +51,12 @@ impl Grid {
         for y in 0..height {
             for x in 0..width {
                 let p = parallax(x, y);
-                cells[y * width + x].add_hits(&hit_pixel((x / 4) as u32), [p, p], 1.0, true);
+                cells[y * width + x].add_hits(
+                    &hit_pixel((x / 4) as u32),
+                    [p, p],
+                    1.0,
+                    Some([Vec3::ONE; 2]),
+                );
             }
         }
         Grid {
@@ -207,7 +212,7 @@ fn a_source_pixel_lands_on_the_cells_its_span_overlaps_weighted_by_the_overlap()
     let land = |x: f32, p: &SourcePixel, row: &mut [Cell]| {
         let q = landing.a + landing.b * p.inv_depth[0];
         band::splat(row, x + q, x + 1.0 + q, |c, w| {
-            c.add_hits(p, [q, q], w, true)
+            c.add_hits(p, [q, q], w, Some([p.radiance; 2]))
         });
     };
     land(3.0, &a, &mut row);
