@@ -53,11 +53,29 @@ thread_local! {
 }
 
 fn take(capacity: usize) -> Vec<Ref> {
-    let mut v = SPARE.with_borrow_mut(|s| s.pop()).unwrap_or_default();
+    let mut v = SPARE
+        .with_borrow_mut(|s| {
+            // The most recent spare that is large enough, among the last few: one that is too
+            // small would be grown into fresh pages, and a first touch of a page costs a fault
+            // (the 1M peer mesh's build faulted about 85k times, mostly here and in `partition`).
+            let fits = s
+                .iter()
+                .rev()
+                .take(SPARE_SEARCH)
+                .position(|v| v.capacity() >= capacity);
+            match fits {
+                Some(k) => Some(s.remove(s.len() - 1 - k)),
+                None => s.pop(),
+            }
+        })
+        .unwrap_or_default();
     v.clear();
     v.reserve(capacity);
     v
 }
+
+/// How many of the most recent spare vectors `take` looks through for one large enough.
+const SPARE_SEARCH: usize = 8;
 
 fn give(v: Vec<Ref>) {
     // Enough for both children of every node on a depth-first path, with room to spare.
@@ -214,7 +232,7 @@ impl Ctx<'_> {
         out.inner(
             split.axis,
             split.pos,
-            n > self.parallel_above,
+            (n > self.parallel_above).then_some(above.len()),
             |out| self.node(below, below_box, depth + 1, below_budget, out),
             |out| self.node(above, above_box, depth + 1, above_budget, out),
         );
@@ -238,7 +256,7 @@ impl Ctx<'_> {
         out.inner(
             split.axis,
             split.pos,
-            false,
+            None,
             |out| self.small_node(&below, below_box, depth + 1, below_budget, out),
             |out| self.small_node(&above, above_box, depth + 1, above_budget, out),
         );
@@ -444,20 +462,24 @@ impl Ctx<'_> {
     /// The children's reference lists, in the parent's order (so the result is deterministic).
     fn partition(&self, refs: &[Ref], s: &Split) -> (Vec<Ref>, Vec<Ref>) {
         if refs.len() > PARALLEL_NODE {
+            // Each chunk into spare vectors of its own thread, then the chunks in order into
+            // two spare vectors: no list here is grown or allocated where a spare one fits.
             let parts: Vec<(Vec<Ref>, Vec<Ref>)> = refs
                 .par_chunks(CHUNK)
                 .map(|c| {
-                    let (mut below, mut above) = (Vec::new(), Vec::new());
+                    let (mut below, mut above) = (take(c.len()), take(c.len()));
                     self.partition_into(c, s, &mut below, &mut above);
                     (below, above)
                 })
                 .collect();
             let nb = parts.iter().map(|p| p.0.len()).sum();
             let na = parts.iter().map(|p| p.1.len()).sum();
-            let (mut below, mut above) = (Vec::with_capacity(nb), Vec::with_capacity(na));
+            let (mut below, mut above) = (take(nb), take(na));
             for (b, a) in parts {
                 below.extend_from_slice(&b);
                 above.extend_from_slice(&a);
+                give(b);
+                give(a);
             }
             (below, above)
         } else {

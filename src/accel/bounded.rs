@@ -116,7 +116,7 @@ impl Ctx {
         out.inner(
             axis,
             c.position,
-            below.len() + above.len() > PARALLEL_THRESHOLD,
+            (below.len() + above.len() > PARALLEL_THRESHOLD).then_some(above.len()),
             |out| self.node(below, below_box, depth + 1, out),
             |out| self.node(above, above_box, depth + 1, out),
         );
