@@ -58,7 +58,8 @@ pub(super) fn build_topology(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> 
         nodes: Vec::with_capacity(2 * items.len()),
         refs: Vec::with_capacity(items.len()),
     };
-    ctx.node(&mut items, bounds, 0, &mut out);
+    let (centroids, _, _) = extents(&items, 0);
+    ctx.node(&mut items, bounds, centroids, 0, &mut out);
     KdTree::assemble(out.nodes, out.refs, triangles, bounds, params, start)
 }
 
@@ -90,12 +91,38 @@ struct Choice {
     position: f32,
 }
 
+/// Per axis, the lowest and highest triangle centroid of a node's items: the range its
+/// centroid bins span.
+type CentroidRange = [(f32, f32); 3];
+
+/// The centroid range and, on `axis`, the lowest lower and highest upper bound of `items`, in
+/// one pass: each child's range comes from its parent's partition, not from a pass of its own.
+fn extents(items: &[Item], axis: usize) -> (CentroidRange, f32, f32) {
+    let mut range = [(f32::INFINITY, f32::NEG_INFINITY); 3];
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for it in items {
+        for (r, &c) in range.iter_mut().zip(&it.centroid) {
+            *r = (r.0.min(c), r.1.max(c));
+        }
+        lo = lo.min(it.lo[axis]);
+        hi = hi.max(it.hi[axis]);
+    }
+    (range, lo, hi)
+}
+
 impl Ctx {
-    fn node(&self, items: &mut [Item], node_box: Aabb, depth: u32, out: &mut Flat) {
+    fn node(
+        &self,
+        items: &mut [Item],
+        node_box: Aabb,
+        centroids: CentroidRange,
+        depth: u32,
+        out: &mut Flat,
+    ) {
         let choice = if items.len() <= 1 || depth >= self.max_depth {
             None
         } else {
-            self.find_split(items, &node_box)
+            self.find_split(items, &node_box, &centroids)
         };
         let Some(c) = choice else {
             out.leaf(items.iter().map(|it| it.prim));
@@ -106,10 +133,8 @@ impl Ctx {
         let (below, above) = items.split_at_mut(mid);
         // The children's boxes: the parent's cut on the split axis at each side's extent.
         let axis = c.axis;
-        let below_max = below
-            .iter()
-            .fold(f32::NEG_INFINITY, |m, it| m.max(it.hi[axis]));
-        let above_min = above.iter().fold(f32::INFINITY, |m, it| m.min(it.lo[axis]));
+        let (below_centroids, _, below_max) = extents(below, axis);
+        let (above_centroids, above_min, _) = extents(above, axis);
         let (mut below_box, mut above_box) = (node_box, node_box);
         below_box.max[axis] = node_box.max[axis].min(below_max);
         above_box.min[axis] = node_box.min[axis].max(above_min);
@@ -117,36 +142,49 @@ impl Ctx {
             axis,
             c.position,
             (below.len() + above.len() > PARALLEL_THRESHOLD).then_some(above.len()),
-            |out| self.node(below, below_box, depth + 1, out),
-            |out| self.node(above, above_box, depth + 1, out),
+            |out| self.node(below, below_box, below_centroids, depth + 1, out),
+            |out| self.node(above, above_box, above_centroids, depth + 1, out),
         );
     }
 
     /// The cheapest centroid-bin boundary over the three axes, or `None` when a leaf is cheaper.
-    fn find_split(&self, items: &[Item], node_box: &Aabb) -> Option<Choice> {
+    /// The three axes are binned in one pass over the items: three independent histograms
+    /// interleave, where one axis at a time waited on each bin's last update (neighbouring
+    /// triangles fall in the same bin).
+    fn find_split(
+        &self,
+        items: &[Item],
+        node_box: &Aabb,
+        centroids: &CentroidRange,
+    ) -> Option<Choice> {
         let area = node_box.surface_area();
         if area <= 0.0 {
             return None;
         }
         let n = items.len();
         let leaf_cost = self.params.intersection_cost * n as f32;
-        let mut best: Option<(f32, Choice)> = None;
-        for axis in 0..3 {
-            let (cmin, cmax) = items
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), it| {
-                    (a.min(it.centroid[axis]), b.max(it.centroid[axis]))
-                });
-            if cmax <= cmin {
-                continue;
+        let scale = centroids.map(|(cmin, cmax)| {
+            if cmax > cmin {
+                BINS as f32 / (cmax - cmin)
+            } else {
+                0.0
             }
-            let scale = BINS as f32 / (cmax - cmin);
-            let mut bins = [EMPTY_BIN; BINS];
-            for it in items {
-                let b = &mut bins[centroid_bin(it.centroid[axis], cmin, scale)];
+        });
+        let mut bins = [[EMPTY_BIN; BINS]; 3];
+        for it in items {
+            for axis in 0..3 {
+                let b = &mut bins[axis]
+                    [centroid_bin(it.centroid[axis], centroids[axis].0, scale[axis])];
                 b.count += 1;
                 b.lo = b.lo.min(it.lo[axis]);
                 b.hi = b.hi.max(it.hi[axis]);
+            }
+        }
+        let mut best: Option<(f32, Choice)> = None;
+        for (axis, bins) in bins.iter().enumerate() {
+            let (cmin, scale) = (centroids[axis].0, scale[axis]);
+            if scale == 0.0 {
+                continue;
             }
             // Sweep from the top for the above sides' lowest reach, then from the bottom.
             let mut above_min = [f32::INFINITY; BINS];
@@ -160,9 +198,15 @@ impl Ctx {
             let child_area = |extent: f32| 2.0 * (e1 * e2 + extent.max(0.0) * (e1 + e2));
             let (mut nb, mut below_max) = (0usize, f32::NEG_INFINITY);
             for k in 1..BINS {
+                // After an empty bin the boundary is the one before it again (the same counts
+                // and reaches, the same cost, and ties keep the first): small nodes, most of
+                // whose 32 bins are empty, cost as many boundaries as they have items.
+                if bins[k - 1].count == 0 {
+                    continue;
+                }
                 nb += bins[k - 1].count;
                 below_max = below_max.max(bins[k - 1].hi);
-                if nb == 0 || nb == n {
+                if nb == n {
                     continue;
                 }
                 let below = child_area(below_max.min(node_box.max[axis]) - node_box.min[axis]);
