@@ -23,6 +23,7 @@
 use super::aabb::Aabb;
 use super::bins::{BIN_STORE, Bins, Grid, Ref};
 use super::params::BuildParams;
+use super::spare::{give, take};
 use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, share};
 use super::tree::{Flat, Node};
 use glam::Vec3;
@@ -44,47 +45,6 @@ const CHUNK: usize = 1 << 14;
 /// of 128 (Mitsuba 0.6's count) leaves fewer reference bounds to refine in the large nodes.
 fn bin_count(n: usize) -> usize {
     (n / 4).clamp(8, 512)
-}
-
-thread_local! {
-    /// Spare reference vectors: a node returns its list once partitioned and its children take
-    /// theirs from here, so after the first few levels the build allocates nothing per node.
-    static SPARE: RefCell<Vec<Vec<Ref>>> = const { RefCell::new(Vec::new()) };
-}
-
-fn take(capacity: usize) -> Vec<Ref> {
-    let mut v = SPARE
-        .with_borrow_mut(|s| {
-            // The most recent spare that is large enough, among the last few: one that is too
-            // small would be grown into fresh pages, and a first touch of a page costs a fault
-            // (the 1M peer mesh's build faulted about 85k times, mostly here and in `partition`).
-            let fits = s
-                .iter()
-                .rev()
-                .take(SPARE_SEARCH)
-                .position(|v| v.capacity() >= capacity);
-            match fits {
-                Some(k) => Some(s.remove(s.len() - 1 - k)),
-                None => s.pop(),
-            }
-        })
-        .unwrap_or_default();
-    v.clear();
-    v.reserve(capacity);
-    v
-}
-
-/// How many of the most recent spare vectors `take` looks through for one large enough.
-const SPARE_SEARCH: usize = 8;
-
-fn give(v: Vec<Ref>) {
-    // Enough for both children of every node on a depth-first path, with room to spare.
-    const KEEP: usize = 256;
-    SPARE.with_borrow_mut(|s| {
-        if s.len() < KEEP && v.capacity() > 0 {
-            s.push(v)
-        }
-    });
 }
 
 pub(super) fn build(

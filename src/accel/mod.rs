@@ -4,13 +4,13 @@
 //! update (`update.rs`) reads only the posed triangles and node matrices of a frame.
 //!
 //! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
-//! shares), `build`, `binned` (with `bins`: the default), `sah` (the exact sweep) and `bounded`
-//! (the refit-friendly topology) are the builders, `tree` (the compact layout), `traverse` and
-//! `refit` (the two walks; `refit_packet` walks refitted trees in packets), `instances` (the
-//! two-level top), `update` (the per-frame policy), `stats`, `triangle` (the watertight
-//! ray-triangle test), `packet` (up to four rays walking together) with `lanes` (its four-lane
-//! arithmetic), and `query` (the tree's `Intersect`). Only what this file re-exports is visible
-//! outside.
+//! shares), `build`, `binned` (with `bins` and `spare`, its pool of reference vectors: the
+//! default), `sah` (the exact sweep) and `bounded` (the refit-friendly topology) are the builders,
+//! `tree` (the compact layout), `traverse` and `refit` (the two walks; `refit_packet` walks
+//! refitted trees in packets), `instances` (the two-level top), `update` (the per-frame policy),
+//! `stats`, `triangle` (the watertight ray-triangle test), `packet` (up to four rays walking
+//! together) with `lanes` (its four-lane arithmetic), and `query` (the tree's `Intersect`). Only
+//! what this file re-exports is visible outside.
 
 mod aabb;
 mod binned;
@@ -25,6 +25,7 @@ mod query;
 mod refit;
 mod refit_packet;
 mod sah;
+mod spare;
 mod split;
 mod stats;
 mod traverse;
