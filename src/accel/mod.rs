@@ -7,15 +7,17 @@
 //! shares), `build`, `binned` (with `bins` and `spare`, its pool of reference vectors: the
 //! default), `sah` (the exact sweep) and `bounded` (the refit-friendly topology) are the builders,
 //! `tree` (the compact layout), `traverse` and `refit` (the two walks; `refit_packet` walks
-//! refitted trees in packets), `instances` (the two-level top), `update` (the per-frame policy),
-//! `stats`, `triangle` (the watertight ray-triangle test), `packet` (up to four rays walking
-//! together) with `lanes` (its four-lane arithmetic), and `query` (the tree's `Intersect`). Only
-//! what this file re-exports is visible outside.
+//! refitted trees in packets, and `box_node` is the layout both refit walks read), `instances` (the
+//! two-level top), `update` (the per-frame policy), `stats`, `triangle` (the watertight ray-
+//! triangle test), `packet` (up to four rays walking together) with `lanes` (its four-lane
+//! arithmetic), and `query` (the tree's `Intersect`). Only what this file re-exports is visible
+//! outside.
 
 mod aabb;
 mod binned;
 mod bins;
 mod bounded;
+mod box_node;
 mod build;
 mod instances;
 mod lanes;

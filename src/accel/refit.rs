@@ -4,10 +4,16 @@
 //! child recomputed bottom-up in O(n). B-KD trees store two planes on the split axis; this keeps
 //! each child's whole box, so a ray is clipped on all three axes at every node, as in a BVH: on
 //! BrainStem that traced 1.15-1.3x faster than the two planes (`bench sweep`, 320x240, 1-16 spp:
-//! 4.0-5.1 Mrays/s against 3.1-4.4). Children may overlap; traversal visits them nearer first. The compact 8-byte nodes of the static path are untouched:
-//! the boxes live beside them.
+//! 4.0-5.1 Mrays/s against 3.1-4.4). Children may overlap; traversal visits them nearer first.
+//!
+//! The walks read their own layout, rewritten at every refit (`box_node.rs`): one 64-byte node
+//! per inner node with both children's boxes, and the triangles copied into leaf order. Against
+//! the topology's nodes with a box array beside them and the triangles in mesh order, BrainStem's
+//! refitted frames traced 5-7% faster at 16 spp (0.160-0.168 s -> 0.151-0.155, three alternating
+//! runs, 2 threads), for the same refit time.
 
 use super::aabb::Aabb;
+use super::box_node::{self, BoxNode, Child};
 use super::packet::{Run, for_each_hit};
 use super::params::BuildParams;
 use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit, walk_one};
@@ -19,9 +25,13 @@ use std::sync::Arc;
 /// A kd-tree topology refitted to the current triangles (same indexing as the topology's).
 pub struct RefitTree {
     topology: Arc<KdTree>,
-    triangles: Vec<[Vec3; 3]>,
-    /// Per inner node: the boxes of its below and above subtrees' current triangles.
-    boxes: Vec<[Aabb; 2]>,
+    mesh_order: Vec<[Vec3; 3]>,
+    /// The inner nodes with their children's current boxes, as the walks read them.
+    nodes: Vec<BoxNode>,
+    /// The triangles in leaf-reference order (`box_node::Fitted`), and the walks' references
+    /// into them: slot `j` holds the triangle of the topology's reference `j`.
+    leaf_order: Vec<[Vec3; 3]>,
+    slots: Vec<u32>,
     bounds: Aabb,
 }
 
@@ -45,17 +55,14 @@ impl RefitTree {
             triangles.len(),
             "refit keeps the topology: the triangle count must not change"
         );
-        let mut boxes = vec![[Aabb::EMPTY; 2]; topology.nodes.len()];
-        let bounds = if topology.nodes.is_empty() {
-            Aabb::EMPTY
-        } else {
-            subtree_bounds(&topology, &triangles, &mut boxes, 0)
-        };
+        let fitted = box_node::fit(&topology, &triangles);
         RefitTree {
+            slots: (0..topology.prim_refs.len() as u32).collect(),
             topology,
-            triangles,
-            boxes,
-            bounds,
+            mesh_order: triangles,
+            nodes: fitted.nodes,
+            leaf_order: fitted.leaf_triangles,
+            bounds: fitted.bounds,
         }
     }
 
@@ -65,74 +72,79 @@ impl RefitTree {
 
     /// The triangles as they are now, in the topology's indexing.
     pub fn triangles(&self) -> &[[Vec3; 3]] {
-        &self.triangles
+        &self.mesh_order
     }
 
     /// Per node of the topology (unused at leaves): the boxes of its below and above subtrees,
     /// for a walker elsewhere (the GPU's) to upload.
-    pub fn boxes(&self) -> &[[Aabb; 2]] {
-        &self.boxes
+    pub fn boxes(&self) -> Vec<[Aabb; 2]> {
+        box_node::boxes_by_topology(&self.topology, &self.nodes)
+    }
+
+    /// Where a walk starts: the root node, or the one leaf of a topology that has no inner node.
+    pub(super) fn root(&self) -> Child {
+        match self.topology.nodes.first() {
+            Some(n) if n.is_leaf() => {
+                let r = n.leaf_range();
+                Child::Leaf(r.start as u32, r.len() as u32)
+            }
+            _ => Child::Inner(0),
+        }
     }
 
     /// SAH cost of the refitted tree with the topology's constants: each node weighted by the
     /// surface area of its box over the root's.
     pub fn sah_cost(&self) -> f64 {
         let p = &self.topology.params;
-        let root = self.bounds.surface_area().max(f32::MIN_POSITIVE) as f64;
-        let mut cost = 0.0;
-        let mut stack = vec![(0usize, self.bounds)];
-        while let Some((i, b)) = stack.pop() {
-            if self.topology.nodes.is_empty() || b.is_empty() {
-                continue;
-            }
-            let n = self.topology.nodes[i];
-            let area = b.surface_area() as f64 / root;
-            if n.is_leaf() {
-                cost += area * p.intersection_cost as f64 * n.leaf_range().len() as f64;
+        let area = |b: &Aabb| {
+            if b.is_empty() {
+                0.0
             } else {
-                cost += area * p.traversal_cost as f64;
-                let [below, above] = self.boxes[i];
-                stack.push((i + 1, below));
-                stack.push((i + n.above_offset(), above));
+                b.surface_area() as f64
             }
+        };
+        let weigh = |child: Child, b: &Aabb| match child {
+            Child::Inner(_) => area(b) * p.traversal_cost as f64,
+            Child::Leaf(_, count) => area(b) * p.intersection_cost as f64 * count as f64,
+        };
+        let root = area(&self.bounds).max(f32::MIN_POSITIVE as f64);
+        let mut cost = weigh(self.root(), &self.bounds);
+        for n in &self.nodes {
+            cost += weigh(n.child(0), &n.boxes[0]) + weigh(n.child(1), &n.boxes[1]);
         }
-        cost
+        cost / root
     }
 
     /// Front-to-back walk over possibly overlapping child boxes, nearer child first; a child is
     /// skipped once the best hit is closer than where the ray enters it.
     fn walk_boxes(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
-        let nodes = &self.topology.nodes;
-        if nodes.is_empty() || self.bounds.is_empty() {
-            return;
-        }
         let Some((t0, _)) = ray.clip(&self.bounds, t_max) else {
             return;
         };
         // Both children can be pushed at every level: twice the depth bounds the stack.
-        let mut stack = [(0u32, 0f32); 2 * MAX_DEPTH as usize + 4];
-        stack[0] = (0, t0);
+        let mut stack = [(Child::Inner(0), 0f32); 2 * MAX_DEPTH as usize + 4];
+        stack[0] = (self.root(), t0);
         let mut sp = 1;
         while sp > 0 {
             sp -= 1;
-            let (i, near) = stack[sp];
+            let (child, near) = stack[sp];
             if near > visit.limit() {
                 continue;
             }
-            let n = nodes[i as usize];
-            if n.is_leaf() {
-                if visit.leaf(&self.topology.prim_refs[n.leaf_range()]) {
-                    return;
+            let i = match child {
+                Child::Leaf(start, count) => {
+                    if visit.leaf(&self.slots[Child::leaf_range(start, count)]) {
+                        return;
+                    }
+                    continue;
                 }
-                continue;
-            }
+                Child::Inner(i) => i,
+            };
             visit.inner();
-            let [below_box, above_box] = &self.boxes[i as usize];
+            let n = &self.nodes[i as usize];
             let limit = visit.limit();
-            let below = ray.clip(below_box, limit).map(|(a, _)| (i + 1, a));
-            let above = ray
-                .clip(above_box, limit)
-                .map(|(a, _)| (i + n.above_offset() as u32, a));
+            let below = ray.clip(&n.boxes[0], limit).map(|(a, _)| (n.child(0), a));
+            let above = ray.clip(&n.boxes[1], limit).map(|(a, _)| (n.child(1), a));
             // Push the farther child first so the nearer one is popped next (no allocation:
             // this runs at every inner node a ray visits).
             let (first, second) = match (below, above) {
@@ -147,25 +159,11 @@ impl RefitTree {
     }
 }
 
-/// Bounds of a subtree's current triangles; records each inner node's child boxes on the way up.
-fn subtree_bounds(t: &KdTree, tris: &[[Vec3; 3]], boxes: &mut [[Aabb; 2]], i: usize) -> Aabb {
-    let n = t.nodes[i];
-    if n.is_leaf() {
-        return t.prim_refs[n.leaf_range()]
-            .iter()
-            .fold(Aabb::EMPTY, |b, &p| {
-                b.union(&Aabb::of_points(&tris[p as usize]))
-            });
-    }
-    let below = subtree_bounds(t, tris, boxes, i + 1);
-    let above = subtree_bounds(t, tris, boxes, i + n.above_offset());
-    boxes[i] = [below, above];
-    below.union(&above)
-}
-
+/// The single-ray walk's leaves list slots of `leaf_order`; `prim` turns a hit's slot back
+/// into the triangle's index.
 impl LeafWalk for RefitTree {
     fn triangles(&self) -> &[[Vec3; 3]] {
-        &self.triangles
+        &self.leaf_order
     }
 
     fn walk(&self, ray: &WalkRay, t_max: f32, visit: &mut impl Visit) {
@@ -174,9 +172,18 @@ impl LeafWalk for RefitTree {
 }
 
 impl RefitTree {
-    /// The topology's nodes and leaf references, for the packet walk (`refit_packet.rs`).
-    pub(super) fn topology_arrays(&self) -> (&[super::Node], &[u32]) {
-        (&self.topology.nodes, &self.topology.prim_refs)
+    /// The inner nodes, the leaf references and the triangles in their order, for the packet
+    /// walk (`refit_packet.rs`).
+    pub(super) fn walk_arrays(&self) -> (&[BoxNode], &[u32], &[[Vec3; 3]]) {
+        (&self.nodes, &self.topology.prim_refs, &self.leaf_order)
+    }
+
+    /// A single walk's hit, its slot turned back into the triangle's index.
+    fn prim(&self, hit: Option<Hit>) -> Option<Hit> {
+        hit.map(|h| Hit {
+            prim: self.topology.prim_refs[h.prim as usize],
+            ..h
+        })
     }
 
     /// Walks `rays` in packets where consecutive rays share an octant, singly elsewhere;
@@ -191,7 +198,7 @@ impl RefitTree {
         let walk = |run| match run {
             Run::Single(i) => {
                 let hit = walk_one::<ANY>(self, &rays[i], t_max[i], &mut NoTally);
-                [hit, None, None, None]
+                [self.prim(hit), None, None, None]
             }
             Run::Packet(a, b, oct) => self.packet_walk_boxes::<ANY>(&rays[a..b], &t_max[a..b], oct),
         };
@@ -201,7 +208,7 @@ impl RefitTree {
 
 impl Intersect for RefitTree {
     fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        closest_hit(self, ray, t_max, &mut NoTally)
+        self.prim(closest_hit(self, ray, t_max, &mut NoTally))
     }
 
     fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {

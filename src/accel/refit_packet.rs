@@ -11,6 +11,7 @@
 //! hit at exactly the same distance another one can win; any-hit answers cannot differ.
 
 use super::aabb::Aabb;
+use super::box_node::Child;
 use super::lanes::F4;
 use super::packet::{LANES, PacketRays};
 use super::refit::RefitTree;
@@ -37,10 +38,7 @@ impl RefitTree {
         let mut hits = [None; LANES];
         let n = rays.len();
         debug_assert!((1..=LANES).contains(&n) && t_max.len() == n);
-        let (nodes, refs) = self.topology_arrays();
-        if nodes.is_empty() || self.bounds().is_empty() {
-            return hits;
-        }
+        let (nodes, refs, triangles) = self.walk_arrays();
         let rays4 = PacketRays::new(rays);
         let mut best = std::array::from_fn::<f32, LANES, _>(|i| t_max[i.min(n - 1)]);
         let mut best_v = F4::new(best);
@@ -49,46 +47,45 @@ impl RefitTree {
             return hits;
         }
         let pre = RayPre4::new(rays4.rays);
-        let triangles = self.triangles();
-        let boxes = self.boxes();
         // Both children can be pushed at every level: twice the depth bounds the stack.
-        let mut stack = [(0u32, 0u32, F4::splat(0.0)); 2 * MAX_DEPTH as usize + 4];
-        stack[0] = (0, active, entry);
+        let mut stack = [(Child::Inner(0), 0u32, F4::splat(0.0)); 2 * MAX_DEPTH as usize + 4];
+        stack[0] = (self.root(), active, entry);
         let mut sp = 1;
         while sp > 0 {
             sp -= 1;
-            let (i, lanes, near) = stack[sp];
+            let (child, lanes, near) = stack[sp];
             // A lane whose best hit lies before where it enters this box is done with it.
             let lanes = lanes & !near.gt(best_v).bits();
             if lanes == 0 {
                 continue;
             }
-            let node = nodes[i as usize];
-            if node.is_leaf() {
-                for &p in &refs[node.leaf_range()] {
-                    let (hit, [t, b1, b2]) =
-                        intersect4(&pre, &triangles[p as usize], best_v, lanes);
-                    for k in (0..LANES).filter(|k| hit >> k & 1 == 1) {
-                        hits[k] = Some(Hit {
-                            t: t[k],
-                            prim: p,
-                            b1: b1[k],
-                            b2: b2[k],
-                        });
-                        // An any-hit lane is done: no box is entered before minus infinity.
-                        best[k] = if ANY { f32::NEG_INFINITY } else { t[k] };
+            let i = match child {
+                Child::Inner(i) => i,
+                Child::Leaf(start, count) => {
+                    for j in Child::leaf_range(start, count) {
+                        let (hit, [t, b1, b2]) = intersect4(&pre, &triangles[j], best_v, lanes);
+                        for k in (0..LANES).filter(|k| hit >> k & 1 == 1) {
+                            hits[k] = Some(Hit {
+                                t: t[k],
+                                prim: refs[j],
+                                b1: b1[k],
+                                b2: b2[k],
+                            });
+                            // An any-hit lane is done: no box is entered before minus infinity.
+                            best[k] = if ANY { f32::NEG_INFINITY } else { t[k] };
+                        }
+                        if hit != 0 {
+                            best_v = F4::new(best);
+                        }
                     }
-                    if hit != 0 {
-                        best_v = F4::new(best);
-                    }
+                    continue;
                 }
-                continue;
-            }
-            let [below_box, above_box] = &boxes[i as usize];
-            let (below_entry, below) = enter(&rays4, below_box, best_v, lanes);
-            let (above_entry, above) = enter(&rays4, above_box, best_v, lanes);
-            let below = (i + 1, below, below_entry);
-            let above = (i + node.above_offset() as u32, above, above_entry);
+            };
+            let node = &nodes[i as usize];
+            let (below_entry, below) = enter(&rays4, &node.boxes[0], best_v, lanes);
+            let (above_entry, above) = enter(&rays4, &node.boxes[1], best_v, lanes);
+            let below = (node.child(0), below, below_entry);
+            let above = (node.child(1), above, above_entry);
             // The nearer child is popped first: the one the octant meets first on the split
             // axis.
             let (first, second) = if oct >> node.axis() & 1 == 1 {

@@ -121,10 +121,19 @@ impl<'a> TreeView<'a> {
         }
     }
 
-    fn boxes(self) -> &'a [[Aabb; 2]] {
+    /// A refitted tree's children's boxes per topology node; none for a kd-tree.
+    fn boxes(self) -> Vec<[Aabb; 2]> {
         match self {
-            TreeView::Kd(_) => &[],
+            TreeView::Kd(_) => Vec::new(),
             TreeView::Refit(t) => t.boxes(),
+        }
+    }
+
+    /// How many entries `boxes` has.
+    fn box_count(self) -> usize {
+        match self {
+            TreeView::Kd(_) => 0,
+            TreeView::Refit(t) => t.topology().arrays().nodes.len(),
         }
     }
 }
@@ -154,7 +163,7 @@ impl<'a> PartView<'a> {
         [
             topology.nodes.len(),
             topology.prim_refs.len(),
-            self.tree.boxes().len(),
+            self.tree.box_count(),
             match self.world_to_object {
                 Some(_) => self.tree.triangles().len(),
                 None => 0,
