@@ -40,19 +40,20 @@ pub enum UpdateMode {
     Auto,
 }
 
-/// Under `auto`, a deforming mesh sampled more than this many times per triangle each frame
-/// (camera samples of both eyes) is rebuilt as a kd-tree instead of refitted. Where rebuilding
-/// starts to pay, measured with the refitted tree walked in four-ray packets (update and tracing
-/// per frame, 2 threads): BrainStem (61,666 triangles, 320x240) between 40 samples per triangle
-/// (16 spp: refit 179-186 ms, rebuild 199-207 ms) and 80 (32 spp: rebuild 370 ms, refit 408 ms);
-/// CesiumMan (4.7k, 480x360) between about 290 (4 spp: refit 72 ms, rebuild 79 ms) and 1,180
-/// (16 spp: rebuild 228 ms, refit 235 ms). 50 takes BrainStem's side; before the packets (single-
-/// ray refit walks) it was 30. Counting only the samples that reach the mesh would not reconcile
-/// the two: their boxes cover about the same share of the film (BrainStem 0.17-0.29, CesiumMan
-/// 0.16-0.20 over frames 0-11). What differs is a rebuild's cost per triangle (65 ms for
-/// BrainStem's 61.7k, 8.5 ms for CesiumMan's 4.7k: 1.1 against 1.8 us) and the refitted tree's
-/// trace penalty (1.3x against 1.15x at 1 spp).
-pub const REBUILD_SAMPLES_PER_TRIANGLE: f64 = 50.0;
+/// Under `auto`, a deforming mesh sampled more than this many times per triangle each frame (camera
+/// samples of both eyes) is rebuilt as a kd-tree instead of refitted. Where rebuilding starts to
+/// pay, measured with the refitted tree in its walk layout (`box_node.rs`) and walked in four-ray
+/// packets (update and tracing per frame, median of frames 1-11, three alternating runs, 2
+/// threads): BrainStem (61,666 triangles, 320x240) at about 80 (24 spp, 60 samples per triangle:
+/// refit 248-306 ms, rebuild 254-312 ms; 32 spp, 80: refit 318-349 ms, rebuild 326-340 ms);
+/// CesiumMan (4,672, 480x360) between 74 (1 spp: refit 25-29 ms, rebuild 34-39 ms) and 1,180 (16
+/// spp: rebuild 223-226 ms, refit 239-250 ms), about even at 296 (4 spp). Faster refit walks moved
+/// it up: 30 with single-ray walks, 50 with packets over the topology's nodes. Counting only the
+/// samples that reach the mesh would not reconcile the two meshes: their boxes cover about the same
+/// share of the film (BrainStem 0.17-0.29, CesiumMan 0.16-0.20 over frames 0-11). What differs is a
+/// rebuild's cost per triangle (65 ms for BrainStem, 8.5 ms for CesiumMan: 1.1 against 1.8 us) and
+/// the refitted tree's trace penalty (1.2-1.27x against 1.07-1.13x).
+pub const REBUILD_SAMPLES_PER_TRIANGLE: f64 = 80.0;
 
 /// What the update did to an object this frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
