@@ -119,11 +119,6 @@ impl Item {
     }
 }
 
-/// Surface area of a box that may be empty (an empty one has none).
-fn area_of(b: &Aabb) -> f32 {
-    if b.is_empty() { 0.0 } else { b.surface_area() }
-}
-
 impl Ctx {
     fn node(
         &self,
@@ -200,7 +195,7 @@ impl Ctx {
             let mut acc = Aabb::EMPTY;
             for k in (1..BINS).rev() {
                 acc = acc.union(&bins[k].bounds);
-                above_area[k] = area_of(&acc);
+                above_area[k] = acc.surface_area();
             }
             let (mut nb, mut below_box) = (0usize, Aabb::EMPTY);
             for k in 1..BINS {
@@ -215,7 +210,7 @@ impl Ctx {
                 if nb == n {
                     continue;
                 }
-                let (below, above) = (area_of(&below_box), above_area[k]);
+                let (below, above) = (below_box.surface_area(), above_area[k]);
                 let cost = self.params.traversal_cost
                     + self.params.intersection_cost * (below * nb as f32 + above * (n - nb) as f32)
                         / area;

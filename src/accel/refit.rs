@@ -96,13 +96,8 @@ impl RefitTree {
     /// surface area of its box over the root's.
     pub fn sah_cost(&self) -> f64 {
         let p = &self.topology.params;
-        let area = |b: &Aabb| {
-            if b.is_empty() {
-                0.0
-            } else {
-                b.surface_area() as f64
-            }
-        };
+        // An empty box has no area (`Aabb::surface_area`).
+        let area = |b: &Aabb| b.surface_area() as f64;
         let weigh = |child: Child, b: &Aabb| match child {
             Child::Inner(_) => area(b) * p.traversal_cost as f64,
             Child::Leaf(_, count) => area(b) * p.intersection_cost as f64 * count as f64,
