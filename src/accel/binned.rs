@@ -126,8 +126,9 @@ impl AxisCost {
         }
     }
 
+    /// Counts as `u32`: one instruction each to convert (a `usize` takes a sign test too).
     #[inline]
-    fn cost(&self, l: f32, nb: usize, na: usize) -> f32 {
+    fn cost(&self, l: f32, nb: u32, na: u32) -> f32 {
         let below = self.e1e2 + self.e1_plus_e2 * l;
         let above = self.e1e2 + self.e1_plus_e2 * (self.extent - l);
         let bonus = if nb == 0 || na == 0 {
@@ -299,7 +300,6 @@ impl Ctx<'_> {
                     above += (hi[i] > pos) as u32;
                     planar += ((lo[i] == pos) & (hi[i] == pos)) as u32;
                 }
-                let (below, above, planar) = (below as usize, above as usize, planar as usize);
                 let l = pos - min;
                 keep(
                     &mut best,
@@ -345,7 +345,8 @@ impl Ctx<'_> {
             b
         };
         let mut best = None;
-        // Per axis, the boundary index of its cheapest plane.
+        // Per axis, the boundary index of its cheapest plane (the first of equal ones), kept
+        // as the node's best in axis order: the first cheapest boundary in visiting order.
         let mut axis_best = [None::<(f32, usize)>; 3];
         for (axis, axis_best) in axis_best.iter_mut().enumerate() {
             if grid.extent[axis] <= 0.0 {
@@ -353,19 +354,23 @@ impl Ctx<'_> {
             }
             let cost = AxisCost::new(self.params, node_box, axis);
             let width = grid.extent[axis] / grid.count as f32;
-            let (mut started, mut ended) = (0usize, 0usize);
+            let (lo_counts, hi_counts) = (counts.lo(axis), counts.hi(axis));
+            let (mut started, mut ended) = (0u32, 0u32);
             for k in 1..grid.count {
-                started += counts.lo(axis)[k - 1] as usize;
-                ended += counts.hi(axis)[k - 1] as usize;
+                started += lo_counts[k - 1];
+                ended += hi_counts[k - 1];
                 let l = k as f32 * width;
                 let pos = grid.origin[axis] + l;
                 if pos > node_box.min[axis] && pos < node_box.max[axis] {
-                    let c = cost.cost(l, started, n - ended);
+                    let c = cost.cost(l, started, n as u32 - ended);
                     if axis_best.is_none_or(|(b, _)| c < b) {
                         *axis_best = Some((c, k));
                     }
-                    keep(&mut best, c, axis, pos, false);
                 }
+            }
+            if let Some((c, k)) = *axis_best {
+                let pos = grid.origin[axis] + k as f32 * width;
+                keep(&mut best, c, axis, pos, false);
             }
         }
         // Refining only the axis the bins chose costs a third of refining all three and,
@@ -393,29 +398,34 @@ impl Ctx<'_> {
         best: &mut Option<(f32, Split)>,
     ) {
         WINDOW.with_borrow_mut(|ev| {
+            // Every reference writes both its events and keeps those inside the window (a
+            // planar one once): no branch on where a reference lies, which is unpredictable.
             ev.clear();
-            let inside = |x: f32| grid.bin(x, axis).wrapping_sub(first) < 2;
+            ev.reserve(2 * refs.len());
+            let room = &mut ev.spare_capacity_mut()[..2 * refs.len()];
+            let mut len = 0;
             for r in refs {
                 let (lo, hi) = (r.lo[axis], r.hi[axis]);
-                if lo == hi {
-                    if inside(lo) {
-                        ev.push((lo, PLANAR));
-                    }
-                } else {
-                    if inside(lo) {
-                        ev.push((lo, START));
-                    }
-                    if inside(hi) {
-                        ev.push((hi, END));
-                    }
-                }
+                let planar = lo == hi;
+                room[len].write((lo, if planar { PLANAR } else { START }));
+                len += grid.in_pair(lo, axis, first) as usize;
+                room[len].write((hi, END));
+                len += (grid.in_pair(hi, axis, first) & !planar) as usize;
             }
+            // SAFETY: the first `len` entries of the spare room were written above.
+            unsafe { ev.set_len(len) };
             ev.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
             let cost = AxisCost::new(self.params, node_box, axis);
             let started: u32 = counts.lo(axis)[..first].iter().sum();
             let ended: u32 = counts.hi(axis)[..first].iter().sum();
-            let (below, above) = (started as usize, refs.len() - ended as usize);
-            sweep(ev, (below, above), node_box, axis, &cost, best);
+            sweep(
+                ev,
+                (started, refs.len() as u32 - ended),
+                node_box,
+                axis,
+                &cost,
+                best,
+            );
         });
     }
 
@@ -484,7 +494,7 @@ impl Ctx<'_> {
 /// in it tried on either side (the rule of `sah.rs`).
 fn sweep(
     ev: &[(f32, u8)],
-    (mut below, mut above): (usize, usize),
+    (mut below, mut above): (u32, u32),
     node_box: &Aabb,
     axis: usize,
     cost: &AxisCost,
@@ -494,7 +504,7 @@ fn sweep(
     let mut i = 0;
     while i < ev.len() {
         let pos = ev[i].0;
-        let mut count = [0usize; 3];
+        let mut count = [0u32; 3];
         while i < ev.len() && ev[i].0 == pos {
             count[ev[i].1 as usize] += 1;
             i += 1;

@@ -86,6 +86,19 @@ mod imp {
         pub fn select(m: M4, a: F4, b: F4) -> F4 {
             F4(unsafe { _mm_or_ps(_mm_and_ps(m.0, a.0), _mm_andnot_ps(m.0, b.0)) })
         }
+        /// `self.max(lo).min(hi)` lane by lane, as `f32::max` and `f32::min` give it (a NaN
+        /// lane becomes `lo`), for `lo <= hi`: `maxps` returns its second operand when either
+        /// is NaN.
+        #[inline(always)]
+        pub fn clamp(self, lo: F4, hi: F4) -> F4 {
+            F4(unsafe { _mm_min_ps(_mm_max_ps(self.0, lo.0), hi.0) })
+        }
+        /// Each lane rounded toward zero to an integer: `x as i32` for every `x` an `i32` holds.
+        #[inline(always)]
+        pub fn trunc_i32(self) -> [i32; 4] {
+            // SAFETY: an `__m128i` is four i32s.
+            unsafe { std::mem::transmute::<__m128i, [i32; 4]>(_mm_cvttps_epi32(self.0)) }
+        }
     }
 
     impl M4 {
@@ -195,6 +208,14 @@ mod imp {
                 |i| if m.0[i] { a.0[i] } else { b.0[i] },
             ))
         }
+        #[inline(always)]
+        pub fn clamp(self, lo: F4, hi: F4) -> F4 {
+            self.zip(lo, f32::max).zip(hi, f32::min)
+        }
+        #[inline(always)]
+        pub fn trunc_i32(self) -> [i32; 4] {
+            self.0.map(|x| x as i32)
+        }
     }
 
     impl M4 {
@@ -265,7 +286,16 @@ mod tests {
             assert_eq!(x.le(y).bits() >> i & 1 == 1, a[i] <= b[i]);
             assert_eq!(x.gt(y).bits() >> i & 1 == 1, a[i] > b[i]);
             assert_eq!(x.eq(y).bits() >> i & 1 == 1, a[i] == b[i]);
+            if !a[i].is_nan() {
+                assert_eq!(x.trunc_i32()[i], a[i] as i32);
+            }
         }
+        assert_eq!(
+            F4::new([-2.7, 2.7, 511.99, 0.5]).trunc_i32(),
+            [-2, 2, 511, 0]
+        );
+        let clamped = F4::new([f32::NAN, -1.0, 0.5, 9.0]).clamp(F4::splat(0.0), F4::splat(3.0));
+        assert_eq!(clamped.to_array(), [0.0, 0.0, 0.5, 3.0]);
         let m = x.lt(F4::splat(2.0));
         assert_eq!(m.bits(), 0b0011);
         assert!(same(F4::select(m, x, y).to_array()[2], 1.0));
