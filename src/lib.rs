@@ -9,6 +9,7 @@ pub mod compare;
 pub mod error;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod huge_pages;
 pub mod info;
 pub mod output;
 mod paths;

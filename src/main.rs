@@ -5,6 +5,7 @@ use clap::Parser;
 use std::io::IsTerminal;
 use std::process::ExitCode;
 use stereotrace::bench::{accel, memory, sweep};
+use stereotrace::huge_pages::HugePageSystem;
 use stereotrace::pipeline::LoadedPipeline;
 use stereotrace::run::{Bytes, MemoryEstimate, RunOptions, assemble, depth_check, memory_limit};
 use stereotrace::{Error, Result, compare, info, thread_pool};
@@ -13,9 +14,11 @@ mod cli;
 mod manual;
 use cli::{BenchCommand, Cli, Command};
 
-/// Counts heap bytes so that `bench sweep` can report each combination's peak.
+/// Counts heap bytes so that `bench sweep` can report each combination's peak, over the system
+/// allocator with huge pages for large blocks.
 #[global_allocator]
-static ALLOCATOR: memory::CountingAllocator = memory::CountingAllocator;
+static ALLOCATOR: memory::CountingAllocator<HugePageSystem> =
+    memory::CountingAllocator(HugePageSystem);
 
 /// Writes a report line to standard output (see `emit`).
 macro_rules! out {

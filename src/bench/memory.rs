@@ -1,18 +1,18 @@
-//! Peak heap measurement for `bench sweep`: a global allocator that forwards to the system
-//! allocator and keeps the bytes in use and their high-water mark. The binary installs it; when
-//! nothing installed it (library users, tests), `peak_bytes` reports `None`.
+//! Peak heap measurement for `bench sweep`: a global allocator that forwards to another one (the
+//! binary's: `HugePageSystem`) and keeps the bytes in use and their high-water mark. The binary
+//! installs it; when nothing installed it (library users, tests), `peak_bytes` reports `None`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
+use std::alloc::{GlobalAlloc, Layout};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::Relaxed};
 
 static IN_USE: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
 static INSTALLED: AtomicBool = AtomicBool::new(false);
 
-/// The counting allocator. Install it with `#[global_allocator]`.
-pub struct CountingAllocator;
+/// The counting allocator over the allocator `A`. Install it with `#[global_allocator]`.
+pub struct CountingAllocator<A>(pub A);
 
-impl CountingAllocator {
+impl<A> CountingAllocator<A> {
     fn grew(size: usize) {
         INSTALLED.store(true, Relaxed);
         let now = IN_USE.fetch_add(size, Relaxed) + size;
@@ -20,11 +20,11 @@ impl CountingAllocator {
     }
 }
 
-// SAFETY: every call forwards to `System` with the caller's layout; the counters do not touch
-// the memory.
-unsafe impl GlobalAlloc for CountingAllocator {
+// SAFETY: every call forwards to `A` with the caller's layout; the counters do not touch the
+// memory.
+unsafe impl<A: GlobalAlloc> GlobalAlloc for CountingAllocator<A> {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(layout) };
+        let p = unsafe { self.0.alloc(layout) };
         if !p.is_null() {
             Self::grew(layout.size());
         }
@@ -32,7 +32,7 @@ unsafe impl GlobalAlloc for CountingAllocator {
     }
 
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc_zeroed(layout) };
+        let p = unsafe { self.0.alloc_zeroed(layout) };
         if !p.is_null() {
             Self::grew(layout.size());
         }
@@ -40,12 +40,12 @@ unsafe impl GlobalAlloc for CountingAllocator {
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) };
+        unsafe { self.0.dealloc(ptr, layout) };
         IN_USE.fetch_sub(layout.size(), Relaxed);
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let p = unsafe { System.realloc(ptr, layout, new_size) };
+        let p = unsafe { self.0.realloc(ptr, layout, new_size) };
         if !p.is_null() {
             IN_USE.fetch_sub(layout.size(), Relaxed);
             Self::grew(new_size);
