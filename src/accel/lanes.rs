@@ -86,6 +86,16 @@ mod imp {
         pub fn select(m: M4, a: F4, b: F4) -> F4 {
             F4(unsafe { _mm_or_ps(_mm_and_ps(m.0, a.0), _mm_andnot_ps(m.0, b.0)) })
         }
+        /// `f32::min` lane by lane where no lane is NaN (a NaN yields `o`), in one instruction.
+        #[inline(always)]
+        pub fn min(self, o: F4) -> F4 {
+            F4(unsafe { _mm_min_ps(self.0, o.0) })
+        }
+        /// `f32::max` lane by lane where no lane is NaN (a NaN yields `o`), in one instruction.
+        #[inline(always)]
+        pub fn max(self, o: F4) -> F4 {
+            F4(unsafe { _mm_max_ps(self.0, o.0) })
+        }
         /// `self.max(lo).min(hi)` lane by lane, as `f32::max` and `f32::min` give it (a NaN
         /// lane becomes `lo`), for `lo <= hi`: `maxps` returns its second operand when either
         /// is NaN.
@@ -209,6 +219,14 @@ mod imp {
             ))
         }
         #[inline(always)]
+        pub fn min(self, o: F4) -> F4 {
+            self.zip(o, f32::min)
+        }
+        #[inline(always)]
+        pub fn max(self, o: F4) -> F4 {
+            self.zip(o, f32::max)
+        }
+        #[inline(always)]
         pub fn clamp(self, lo: F4, hi: F4) -> F4 {
             self.zip(lo, f32::max).zip(hi, f32::min)
         }
@@ -287,6 +305,9 @@ mod tests {
             assert_eq!(x.gt(y).bits() >> i & 1 == 1, a[i] > b[i]);
             assert_eq!(x.eq(y).bits() >> i & 1 == 1, a[i] == b[i]);
             if !a[i].is_nan() {
+                let (min, max) = (x.min(y).to_array()[i], x.max(y).to_array()[i]);
+                assert!(same(min, a[i].min(b[i])) || (min == 0.0 && a[i].min(b[i]) == 0.0));
+                assert!(same(max, a[i].max(b[i])) || (max == 0.0 && a[i].max(b[i]) == 0.0));
                 assert_eq!(x.trunc_i32()[i], a[i] as i32);
             }
         }
