@@ -8,12 +8,14 @@
 //!   prefix sweep gives, for every bin boundary, the references reaching below and above it. O(N)
 //!   per node, no allocation. The best boundary is refined by an exact sweep over the few
 //!   reference bounds in the two bins beside it.
-//! - **Exact search in small nodes**: below `EXACT_MAX` references every reference bound is a
-//!   candidate, counted by brute force (cheaper than binning there, and as good as the sweep).
+//! - **Exact search in small nodes** (`small_split.rs`): below `EXACT_MAX` references every
+//!   reference bound is a candidate, counted by brute force in four lanes (cheaper than binning
+//!   there, and as good as the sweep).
 //! - **One-plane straddler split** (Embree's `splitter.h`): a triangle crossing the plane is cut
 //!   by that plane only and the two halves' bounds intersected with its current bounds, instead of
 //!   re-clipping the triangle against six planes.
-//! - **Costs from precomputed constants**: one division per node and axis, none per candidate.
+//! - **Costs from precomputed constants** (`plane_cost.rs`): one division per node and axis, none
+//!   per candidate.
 //! - **No allocation per node**: reference lists come from a per-thread pool of spare vectors;
 //!   nodes and leaf references are appended to their final arrays in depth-first order.
 //! - **Parallel**: the root's binning and partition run on all threads, subtrees on rayon tasks.
@@ -24,6 +26,8 @@ use super::aabb::Aabb;
 use super::bins::{BIN_STORE, Bins, Grid, Ref};
 use super::lanes::{F4, M4};
 use super::params::BuildParams;
+use super::plane_cost::{AxisCost, keep};
+use super::small_split::{EXACT_MAX, exact_split};
 use super::spare::{give, take};
 use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, share};
 use super::tree::{Flat, Node};
@@ -32,10 +36,6 @@ use rayon::prelude::*;
 use smallvec::SmallVec;
 use std::cell::RefCell;
 
-/// At or below this many references a node tries every reference bound as a plane. Measured on
-/// the 1M peer mesh (while all three axes were still refined): 6, 12 and 24 built within this
-/// machine's noise of each other, at SAH cost 150.23, 150.10 and 150.00.
-const EXACT_MAX: usize = 12;
 /// Above this many references a node bins and partitions on all threads, in chunks of this size.
 const PARALLEL_NODE: usize = 1 << 16;
 const CHUNK: usize = 1 << 14;
@@ -104,63 +104,6 @@ struct Ctx<'a> {
     params: &'a BuildParams,
     max_depth: u32,
     parallel_above: usize,
-}
-
-/// The SAH cost of planes on one axis of one node from precomputed constants: a plane at offset
-/// `l` from the node's lower face gives a below child of area 2 (e1 e2 + l (e1 + e2)) for the
-/// other two extents e1, e2, so each candidate costs two multiply-adds (no division, no box).
-struct AxisCost {
-    e1e2: f32,
-    e1_plus_e2: f32,
-    extent: f32,
-    /// 2 K_I / node area.
-    scale: f32,
-    traversal: f32,
-    empty_factor: f32,
-}
-
-impl AxisCost {
-    fn new(p: &BuildParams, b: &Aabb, axis: usize) -> AxisCost {
-        let d = (b.max - b.min).to_array();
-        let (e1, e2) = (d[(axis + 1) % 3], d[(axis + 2) % 3]);
-        AxisCost {
-            e1e2: e1 * e2,
-            e1_plus_e2: e1 + e2,
-            extent: d[axis],
-            scale: 2.0 * p.intersection_cost / b.surface_area(),
-            traversal: p.traversal_cost,
-            empty_factor: 1.0 - p.empty_bonus,
-        }
-    }
-
-    /// Counts as `u32`: one instruction each to convert (a `usize` takes a sign test too).
-    #[inline]
-    fn cost(&self, l: f32, nb: u32, na: u32) -> f32 {
-        let below = self.e1e2 + self.e1_plus_e2 * l;
-        let above = self.e1e2 + self.e1_plus_e2 * (self.extent - l);
-        let bonus = if nb == 0 || na == 0 {
-            self.empty_factor
-        } else {
-            1.0
-        };
-        self.traversal + bonus * self.scale * (below * nb as f32 + above * na as f32)
-    }
-}
-
-/// Keeps `(cost, split)` if strictly cheaper than the best so far (so ties go to the first
-/// candidate in visiting order, a rule that does not depend on threads).
-#[inline]
-fn keep(best: &mut Option<(f32, Split)>, cost: f32, axis: usize, pos: f32, planar_below: bool) {
-    if best.is_none_or(|(c, _)| cost < c) {
-        *best = Some((
-            cost,
-            Split {
-                axis,
-                pos,
-                planar_below,
-            },
-        ));
-    }
 }
 
 /// Event kinds of the refinement sweep, in the order events at one position are swept (as in
@@ -253,80 +196,12 @@ impl Ctx<'_> {
     /// The cheapest plane, or `None` when a leaf is cheaper (the SAH termination rule).
     fn find_split(&self, refs: &[Ref], node_box: &Aabb) -> Option<Split> {
         let best = if refs.len() <= EXACT_MAX {
-            self.exact_split(refs, node_box)
+            exact_split(self.params, refs, node_box)
         } else {
             self.binned_split(refs, node_box)
         };
         let leaf_cost = self.params.intersection_cost * refs.len() as f32;
         best.filter(|(cost, _)| *cost < leaf_cost).map(|(_, s)| s)
-    }
-
-    /// Every reference bound strictly inside the node is a candidate, with the counts of the
-    /// exact sweep (references reaching below, above, and lying in the plane), counted by brute
-    /// force over padded lanes with no data-dependent branch in the count. Measured on the 1M
-    /// peer mesh, 1 thread, whole build: 12 lanes for every small node matched an insertion-sorted
-    /// sweep (4.59 against 4.44 s); lanes in steps of four made it 4.03 s.
-    fn exact_split(&self, refs: &[Ref], node_box: &Aabb) -> Option<(f32, Split)> {
-        // Lanes in steps of four: most small nodes hold two to five references.
-        match refs.len() {
-            0..=4 => self.exact_split_in::<4>(refs, node_box),
-            5..=8 => self.exact_split_in::<8>(refs, node_box),
-            _ => self.exact_split_in::<EXACT_MAX>(refs, node_box),
-        }
-    }
-
-    // Kept out of line, as is `partition_into`: inlined into `node` they made the build 6%
-    // slower (measured, 1 thread, 1M peer mesh).
-    #[inline(never)]
-    fn exact_split_in<const LANES: usize>(
-        &self,
-        refs: &[Ref],
-        node_box: &Aabb,
-    ) -> Option<(f32, Split)> {
-        let mut best = None;
-        for axis in 0..3 {
-            let (min, max) = (node_box.min[axis], node_box.max[axis]);
-            if max <= min {
-                continue;
-            }
-            // Padding never counts: +inf is below no plane, -inf above none.
-            let mut lo = [f32::INFINITY; LANES];
-            let mut hi = [f32::NEG_INFINITY; LANES];
-            for (i, r) in refs.iter().enumerate() {
-                lo[i] = r.lo[axis];
-                hi[i] = r.hi[axis];
-            }
-            let cost = AxisCost::new(self.params, node_box, axis);
-            for pos in lo[..refs.len()].iter().chain(&hi[..refs.len()]).copied() {
-                if !(pos > min && pos < max) {
-                    continue;
-                }
-                let (mut below, mut above, mut planar) = (0u32, 0u32, 0u32);
-                for i in 0..LANES {
-                    below += (lo[i] < pos) as u32;
-                    above += (hi[i] > pos) as u32;
-                    planar += ((lo[i] == pos) & (hi[i] == pos)) as u32;
-                }
-                let l = pos - min;
-                keep(
-                    &mut best,
-                    cost.cost(l, below + planar, above),
-                    axis,
-                    pos,
-                    true,
-                );
-                if planar > 0 {
-                    keep(
-                        &mut best,
-                        cost.cost(l, below, above + planar),
-                        axis,
-                        pos,
-                        false,
-                    );
-                }
-            }
-        }
-        best
     }
 
     /// Min-max binning on each axis; the planes are the bin boundaries. A reference in the plane

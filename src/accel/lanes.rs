@@ -120,6 +120,10 @@ mod imp {
         pub fn or(self, o: M4) -> M4 {
             M4(unsafe { _mm_or_ps(self.0, o.0) })
         }
+        #[inline(always)]
+        pub fn and(self, o: M4) -> M4 {
+            M4(unsafe { _mm_and_ps(self.0, o.0) })
+        }
         /// `self & !o`.
         #[inline(always)]
         pub fn and_not(self, o: M4) -> M4 {
@@ -246,6 +250,10 @@ mod imp {
             M4(std::array::from_fn(|i| self.0[i] || o.0[i]))
         }
         #[inline(always)]
+        pub fn and(self, o: M4) -> M4 {
+            M4(std::array::from_fn(|i| self.0[i] && o.0[i]))
+        }
+        #[inline(always)]
         pub fn and_not(self, o: M4) -> M4 {
             M4(std::array::from_fn(|i| self.0[i] && !o.0[i]))
         }
@@ -322,5 +330,7 @@ mod tests {
         assert!(same(F4::select(m, x, y).to_array()[2], 1.0));
         assert_eq!(M4::all(true).and_not(m).bits(), 0b1100);
         assert_eq!(M4::all(false).or(m).bits(), 0b0011);
+        assert_eq!(M4::all(true).and(m).bits(), 0b0011);
+        assert_eq!(M4::all(false).and(m).bits(), 0);
     }
 }

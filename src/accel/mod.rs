@@ -4,8 +4,9 @@
 //! update (`update.rs`) reads only the posed triangles and node matrices of a frame.
 //!
 //! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
-//! shares), `build`, `binned` (with `bins` and `spare`, its pool of reference vectors: the
-//! default), `sah` (the exact sweep) and `bounded` (the refit-friendly topology) are the builders,
+//! shares), `build`, `binned` (the default, with `bins`, `plane_cost`, `small_split` for its
+//! small nodes and `spare`, its pool of reference vectors), `sah` (the exact sweep) and `bounded`
+//! (the refit-friendly topology) are the builders,
 //! `tree` (the compact layout), `traverse` and `refit` (the two walks; `refit_packet` walks
 //! refitted trees in packets, and `box_node` is the layout both refit walks read), `instances` (the
 //! two-level top), `update` (the per-frame policy), `stats`, `triangle` (the watertight ray-
@@ -23,10 +24,12 @@ mod instances;
 mod lanes;
 mod packet;
 mod params;
+mod plane_cost;
 mod query;
 mod refit;
 mod refit_packet;
 mod sah;
+mod small_split;
 mod spare;
 mod split;
 mod stats;

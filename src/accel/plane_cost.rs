@@ -1,0 +1,71 @@
+//! The SAH cost of candidate planes on one axis of one node, from constants computed once per
+//! node and axis, and the rule that picks among them. Shared by the binned build's binned sweep,
+//! its refinement and its exact search of small nodes (`binned.rs`, `small_split.rs`), so their
+//! costs agree bit for bit with each other.
+
+use super::aabb::Aabb;
+use super::params::BuildParams;
+use super::split::Split;
+
+/// A plane at offset `l` from the node's lower face gives a below child of area
+/// 2 (e1 e2 + l (e1 + e2)) for the other two extents e1, e2, so each candidate costs two
+/// multiply-adds (no division, no box).
+pub(super) struct AxisCost {
+    pub e1e2: f32,
+    pub e1_plus_e2: f32,
+    pub extent: f32,
+    /// 2 K_I / node area.
+    pub scale: f32,
+    pub traversal: f32,
+    pub empty_factor: f32,
+}
+
+impl AxisCost {
+    pub fn new(p: &BuildParams, b: &Aabb, axis: usize) -> AxisCost {
+        let d = (b.max - b.min).to_array();
+        let (e1, e2) = (d[(axis + 1) % 3], d[(axis + 2) % 3]);
+        AxisCost {
+            e1e2: e1 * e2,
+            e1_plus_e2: e1 + e2,
+            extent: d[axis],
+            scale: 2.0 * p.intersection_cost / b.surface_area(),
+            traversal: p.traversal_cost,
+            empty_factor: 1.0 - p.empty_bonus,
+        }
+    }
+
+    /// Counts as `u32`: one instruction each to convert (a `usize` takes a sign test too).
+    #[inline]
+    pub fn cost(&self, l: f32, nb: u32, na: u32) -> f32 {
+        let below = self.e1e2 + self.e1_plus_e2 * l;
+        let above = self.e1e2 + self.e1_plus_e2 * (self.extent - l);
+        let bonus = if nb == 0 || na == 0 {
+            self.empty_factor
+        } else {
+            1.0
+        };
+        self.traversal + bonus * self.scale * (below * nb as f32 + above * na as f32)
+    }
+}
+
+/// Keeps `(cost, split)` if strictly cheaper than the best so far (so ties go to the first
+/// candidate in visiting order, a rule that does not depend on threads).
+#[inline]
+pub(super) fn keep(
+    best: &mut Option<(f32, Split)>,
+    cost: f32,
+    axis: usize,
+    pos: f32,
+    planar_below: bool,
+) {
+    if best.is_none_or(|(c, _)| cost < c) {
+        *best = Some((
+            cost,
+            Split {
+                axis,
+                pos,
+                planar_below,
+            },
+        ));
+    }
+}
