@@ -54,20 +54,18 @@ pub(super) fn build(
     params: &BuildParams,
     max_depth: u32,
 ) -> Flat {
-    // Collected by index, so straight into one vector (a filtering collect goes through one
-    // growing vector per task and a copy, and faulted in a tenth of the build's fresh pages).
-    let mut refs: Vec<Ref> = triangles
-        .par_iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let b = Aabb::of_points(t);
-            Ref {
-                lo: b.min.to_array(),
-                hi: b.max.to_array(),
-                prim: i as u32,
-            }
-        })
-        .collect();
+    // Written by index straight into a spare vector (the previous build's root list, when there
+    // was one): a filtering collect goes through one growing vector per task and a copy, and
+    // faulted in a tenth of the build's fresh pages.
+    let mut refs = take(triangles.len());
+    refs.par_extend(triangles.par_iter().enumerate().map(|(i, t)| {
+        let b = Aabb::of_points(t);
+        Ref {
+            lo: b.min.to_array(),
+            hi: b.max.to_array(),
+            prim: i as u32,
+        }
+    }));
     // Triangles with a non-finite vertex can never be hit; keep them out of the tree.
     let finite = |r: &Ref| r.lo.iter().chain(&r.hi).all(|x| x.is_finite());
     if !refs.par_iter().all(finite) {

@@ -16,10 +16,17 @@ pub(super) fn take(capacity: usize) -> Vec<Ref> {
             // The most recent spare that is large enough, among the last few: one that is too
             // small would be grown into fresh pages, and a first touch of a page costs a fault
             // (the 1M peer mesh's build faulted about 85k times, mostly here and in `partition`).
+            // A large request looks through the whole pool (vectors of the previous build's top
+            // levels lie deep in it, and a large fresh one costs a fault per page).
+            let search = if capacity >= LARGE {
+                s.len()
+            } else {
+                SPARE_SEARCH
+            };
             let fits = s
                 .iter()
                 .rev()
-                .take(SPARE_SEARCH)
+                .take(search)
                 .position(|v| v.capacity() >= capacity);
             match fits {
                 Some(k) => Some(s.remove(s.len() - 1 - k)),
@@ -34,6 +41,9 @@ pub(super) fn take(capacity: usize) -> Vec<Ref> {
 
 /// How many of the most recent spare vectors `take` looks through for one large enough.
 const SPARE_SEARCH: usize = 8;
+/// References from which `take` looks through every spare: 1.8 MB, where a node's work (tens of
+/// microseconds) dwarfs looking through 256 capacities.
+const LARGE: usize = 1 << 16;
 
 pub(super) fn give(v: Vec<Ref>) {
     // Enough for both children of every node on a depth-first path, with room to spare.
