@@ -16,10 +16,11 @@ use super::params::BuildParams;
 use super::plane_cost::{AxisCost, keep};
 use super::split::Split;
 
-/// At or below this many references a node tries every reference bound as a plane. Measured on
-/// the 1M peer mesh (while all three axes were still refined): 6, 12 and 24 built within this
-/// machine's noise of each other, at SAH cost 150.23, 150.10 and 150.00.
-pub(super) const EXACT_MAX: usize = 12;
+/// At or below this many references a node tries every reference bound as a plane; above, it
+/// bins. Measured with the four-lane search on the 1M peer mesh, 1 thread, alternating runs:
+/// 4, 6 and 8 built in 0.84-0.85 s (SAH cost 409.81, 1.157-1.158M nodes), 12 in 0.89-0.91 s
+/// (409.82, 1.168M), 16 in 0.97-0.98 s and 20 in 1.02 s; traversal the same with 8 and 12.
+pub(super) const EXACT_MAX: usize = 8;
 
 /// The cheapest plane of a node of at most `EXACT_MAX` references and its cost, if any
 /// candidate lies strictly inside the node.
@@ -28,11 +29,12 @@ pub(super) fn exact_split(
     refs: &[Ref],
     node_box: &Aabb,
 ) -> Option<(f32, Split)> {
-    // Most small nodes hold two to five references.
-    match refs.len() {
-        0..=4 => search::<1>(params, refs, node_box),
-        5..=8 => search::<2>(params, refs, node_box),
-        _ => search::<3>(params, refs, node_box),
+    // One group of four lanes up to four references (most small nodes hold two to five).
+    const _: () = assert!(EXACT_MAX <= 8);
+    if refs.len() <= 4 {
+        search::<1>(params, refs, node_box)
+    } else {
+        search::<2>(params, refs, node_box)
     }
 }
 
