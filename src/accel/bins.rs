@@ -64,7 +64,8 @@ impl Grid {
         b >= first as f32 && b < (first + 2) as f32
     }
 
-    /// The bins of a point's three coordinates (lane 3 is unused).
+    /// The bins of a point's three coordinates (lane 3 is unused), each in `0..count` whatever
+    /// the point (a NaN coordinate in bin 0): `Bins::add` indexes by them unchecked.
     #[inline(always)]
     fn bins3(&self, p: &[f32; 3]) -> [i32; 4] {
         let b = F4::new([p[0], p[1], p[2], 0.0])
@@ -109,8 +110,14 @@ impl Bins {
             // float-to-index conversion, six times a reference, was most of the count.
             let (lo, hi) = (grid.bins3(&r.lo), grid.bins3(&r.hi));
             for a in 0..3 {
-                counts[2 * a * c + lo[a] as usize] += 1;
-                counts[(2 * a + 1) * c + hi[a] as usize] += 1;
+                // SAFETY: `bins3` clamps every lane into `0..count` (a NaN to 0), so both
+                // indices lie in this axis's `count` bins of `counts`' `6 * count`. Without
+                // the six bounds checks a reference the whole build is 4% faster (1M peer mesh,
+                // 1 thread, 0.84-0.87 s -> 0.81-0.83 s).
+                unsafe {
+                    *counts.get_unchecked_mut(2 * a * c + lo[a] as usize) += 1;
+                    *counts.get_unchecked_mut((2 * a + 1) * c + hi[a] as usize) += 1;
+                }
             }
         }
     }
