@@ -233,23 +233,9 @@ impl Ctx<'_> {
                 continue;
             }
             let cost = AxisCost::new(self.params, node_box, axis);
-            let width = grid.extent[axis] / grid.count as f32;
-            let (lo_counts, hi_counts) = (counts.lo(axis), counts.hi(axis));
-            let (mut started, mut ended) = (0u32, 0u32);
-            for k in 1..grid.count {
-                started += lo_counts[k - 1];
-                ended += hi_counts[k - 1];
-                let l = k as f32 * width;
-                let pos = grid.origin[axis] + l;
-                if pos > node_box.min[axis] && pos < node_box.max[axis] {
-                    let c = cost.cost(l, started, n as u32 - ended);
-                    if axis_best.is_none_or(|(b, _)| c < b) {
-                        *axis_best = Some((c, k));
-                    }
-                }
-            }
+            *axis_best = counts.cheapest_boundary(axis, &grid, node_box, &cost, n as u32);
             if let Some((c, k)) = *axis_best {
-                let pos = grid.origin[axis] + k as f32 * width;
+                let pos = grid.origin[axis] + k as f32 * (grid.extent[axis] / grid.count as f32);
                 keep(&mut best, c, axis, pos, false);
             }
         }

@@ -63,23 +63,7 @@ fn search<const GROUPS: usize>(
             bounds[0][i / 4][i % 4] = r.lo[axis];
             bounds[1][i / 4][i % 4] = r.hi[axis];
         }
-        let c = AxisCost::new(params, node_box, axis);
-        let (e1e2, e1_plus_e2, extent) = (
-            F4::splat(c.e1e2),
-            F4::splat(c.e1_plus_e2),
-            F4::splat(c.extent),
-        );
-        let (scale, traversal, empty) = (
-            F4::splat(c.scale),
-            F4::splat(c.traversal),
-            F4::splat(c.empty_factor),
-        );
-        let cost = |l: F4, nb: F4, na: F4| {
-            let below = e1e2.add(e1_plus_e2.mul(l));
-            let above = e1e2.add(e1_plus_e2.mul(extent.sub(l)));
-            let bonus = F4::select(nb.eq(zero).or(na.eq(zero)), empty, one);
-            traversal.add(bonus.mul(scale).mul(below.mul(nb).add(above.mul(na))))
-        };
+        let cost = AxisCost::new(params, node_box, axis);
         for kind in &bounds {
             for group in kind {
                 let pos = F4::new(*group);
@@ -96,8 +80,8 @@ fn search<const GROUPS: usize>(
                     continue;
                 }
                 let l = pos.sub(F4::splat(min));
-                let planar_below = cost(l, below.add(planar), above).to_array();
-                let planar_above = cost(l, below, above.add(planar)).to_array();
+                let planar_below = cost.cost4(l, below.add(planar), above).to_array();
+                let planar_above = cost.cost4(l, below, above.add(planar)).to_array();
                 let has_planar = planar.gt(zero).bits();
                 for k in 0..4 {
                     if inside >> k & 1 == 1 {
