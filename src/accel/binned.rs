@@ -404,7 +404,7 @@ fn split_straddler(tri: &[Vec3; 3], r: &Ref, axis: usize, pos: f32) -> [Option<R
     };
     let on_axis = F4::new([0.0, 1.0, 2.0, 3.0]).eq(F4::splat(axis as f32));
     let pos4 = F4::splat(pos);
-    let v = tri.map(|p| F4::new([p.x, p.y, p.z, 0.0]));
+    let v = tri.map(|p| F4::xyz(p.to_array()));
     for i in 0..3 {
         let (p, q) = (v[i], v[(i + 1) % 3]);
         let (pa, qa) = (tri[i][axis], tri[(i + 1) % 3][axis]);
@@ -418,10 +418,7 @@ fn split_straddler(tri: &[Vec3; 3], r: &Ref, axis: usize, pos: f32) -> [Option<R
             );
         }
     }
-    let (r_lo, r_hi) = (
-        F4::new([r.lo[0], r.lo[1], r.lo[2], 0.0]),
-        F4::new([r.hi[0], r.hi[1], r.hi[2], 0.0]),
-    );
+    let (r_lo, r_hi) = (F4::xyz(r.lo), F4::xyz(r.hi));
     [0, 1].map(|side| {
         let (mut c_lo, mut c_hi) = (r_lo.max(lo[side]), r_hi.min(hi[side]));
         if side == 0 {

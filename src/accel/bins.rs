@@ -33,15 +33,13 @@ impl Grid {
         let extent = (node_box.max - node_box.min).to_array();
         let origin = node_box.min.to_array();
         let inv_width = extent.map(|e| if e > 0.0 { count as f32 / e } else { 0.0 });
-        let [o0, o1, o2] = origin;
-        let [i0, i1, i2] = inv_width;
         Grid {
             count,
             origin,
             extent,
             inv_width,
-            origin4: F4::new([o0, o1, o2, 0.0]),
-            inv_width4: F4::new([i0, i1, i2, 0.0]),
+            origin4: F4::xyz(origin),
+            inv_width4: F4::xyz(inv_width),
             last4: F4::splat((count - 1) as f32),
         }
     }
@@ -69,9 +67,7 @@ impl Grid {
     /// the point (a NaN coordinate in bin 0): `Bins::add` indexes by them unchecked.
     #[inline(always)]
     fn bins3(&self, p: &[f32; 3]) -> [i32; 4] {
-        let b = F4::new([p[0], p[1], p[2], 0.0])
-            .sub(self.origin4)
-            .mul(self.inv_width4);
+        let b = F4::xyz(*p).sub(self.origin4).mul(self.inv_width4);
         b.clamp(F4::splat(0.0), self.last4).trunc_i32()
     }
 }
@@ -147,10 +143,9 @@ impl Bins {
         for first in (1..self.count).step_by(4) {
             let (mut below, mut above, mut k) = ([0.0; 4], [0.0; 4], [0.0; 4]);
             for lane in 0..4 {
-                let kk = (first + lane).min(self.count - 1);
                 if first + lane < self.count {
-                    started += lo[kk - 1];
-                    ended += hi[kk - 1];
+                    started += lo[first + lane - 1];
+                    ended += hi[first + lane - 1];
                 }
                 (below[lane], above[lane]) = (started as f32, (n - ended) as f32);
                 k[lane] = (first + lane) as f32;

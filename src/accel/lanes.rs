@@ -96,13 +96,6 @@ mod imp {
         pub fn max(self, o: F4) -> F4 {
             F4(unsafe { _mm_max_ps(self.0, o.0) })
         }
-        /// `self.max(lo).min(hi)` lane by lane, as `f32::max` and `f32::min` give it (a NaN
-        /// lane becomes `lo`), for `lo <= hi`: `maxps` returns its second operand when either
-        /// is NaN.
-        #[inline(always)]
-        pub fn clamp(self, lo: F4, hi: F4) -> F4 {
-            F4(unsafe { _mm_min_ps(_mm_max_ps(self.0, lo.0), hi.0) })
-        }
         /// Each lane rounded toward zero to an integer: `x as i32` for every `x` an `i32` holds.
         #[inline(always)]
         pub fn trunc_i32(self) -> [i32; 4] {
@@ -231,10 +224,6 @@ mod imp {
             self.zip(o, f32::max)
         }
         #[inline(always)]
-        pub fn clamp(self, lo: F4, hi: F4) -> F4 {
-            self.zip(lo, f32::max).zip(hi, f32::min)
-        }
-        #[inline(always)]
         pub fn trunc_i32(self) -> [i32; 4] {
             self.0.map(|x| x as i32)
         }
@@ -272,6 +261,19 @@ impl F4 {
     #[inline(always)]
     pub fn columns(rows: [[f32; 4]; 4]) -> [F4; 4] {
         std::array::from_fn(|c| F4::new([rows[0][c], rows[1][c], rows[2][c], rows[3][c]]))
+    }
+
+    /// A point's three coordinates in lanes 0-2, lane 3 zero.
+    #[inline(always)]
+    pub fn xyz(p: [f32; 3]) -> F4 {
+        F4::new([p[0], p[1], p[2], 0.0])
+    }
+
+    /// `self.max(lo).min(hi)` lane by lane, as `f32::max` and `f32::min` give it, for
+    /// `lo <= hi`; a NaN lane becomes `lo` (`max` yields its operand then).
+    #[inline(always)]
+    pub fn clamp(self, lo: F4, hi: F4) -> F4 {
+        self.max(lo).min(hi)
     }
 
     /// The lanes as an array.
