@@ -1,12 +1,11 @@
 //! The SAH cost of candidate planes on one axis of one node, from constants computed once per
-//! node and axis, and the rule that picks among them. Shared by the binned build's binned sweep,
+//! node and axis. Shared by the binned build's binned sweep,
 //! its refinement and its exact search of small nodes (`binned.rs`, `small_split.rs`), so their
 //! costs agree bit for bit with each other.
 
 use super::aabb::Aabb;
 use super::lanes::F4;
 use super::params::BuildParams;
-use super::split::Split;
 
 /// A plane at offset `l` from the node's lower face gives a below child of area
 /// 2 (e1 e2 + l (e1 + e2)) for the other two extents e1, e2, so each candidate costs two
@@ -61,27 +60,5 @@ impl AxisCost {
         let bonus = F4::select(empty, F4::splat(self.empty_factor), F4::splat(1.0));
         let scaled = bonus.mul(F4::splat(self.scale));
         F4::splat(self.traversal).add(scaled.mul(below.mul(nb).add(above.mul(na))))
-    }
-}
-
-/// Keeps `(cost, split)` if strictly cheaper than the best so far (so ties go to the first
-/// candidate in visiting order, a rule that does not depend on threads).
-#[inline]
-pub(super) fn keep(
-    best: &mut Option<(f32, Split)>,
-    cost: f32,
-    axis: usize,
-    pos: f32,
-    planar_below: bool,
-) {
-    if best.is_none_or(|(c, _)| cost < c) {
-        *best = Some((
-            cost,
-            Split {
-                axis,
-                pos,
-                planar_below,
-            },
-        ));
     }
 }

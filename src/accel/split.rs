@@ -136,16 +136,29 @@ pub(super) fn consider_plane(
             (below, above + planar)
         };
         let cost = sah_cost(p, node_box, area, axis, pos, nb, na);
-        if best.is_none_or(|(c, _)| cost < c) {
-            *best = Some((
-                cost,
-                Split {
-                    axis,
-                    pos,
-                    planar_below,
-                },
-            ));
-        }
+        keep(best, cost, axis, pos, planar_below);
+    }
+}
+
+/// Keeps `(cost, split)` if strictly cheaper than the best so far (so ties go to the first
+/// candidate in visiting order, a rule that does not depend on threads).
+#[inline]
+pub(super) fn keep(
+    best: &mut Option<(f32, Split)>,
+    cost: f32,
+    axis: usize,
+    pos: f32,
+    planar_below: bool,
+) {
+    if best.is_none_or(|(c, _)| cost < c) {
+        *best = Some((
+            cost,
+            Split {
+                axis,
+                pos,
+                planar_below,
+            },
+        ));
     }
 }
 
