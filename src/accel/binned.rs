@@ -24,13 +24,14 @@
 
 use super::aabb::Aabb;
 use super::bins::{BIN_STORE, Bins, Grid, Ref};
+use super::flat::Flat;
 use super::lanes::{F4, M4};
 use super::params::BuildParams;
 use super::plane_cost::AxisCost;
 use super::small_split::{EXACT_MAX, exact_split};
 use super::spare::{give, take};
 use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, keep, share};
-use super::tree::{Flat, Node};
+use super::tree::depth_cap;
 use glam::Vec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -48,12 +49,8 @@ fn bin_count(n: usize) -> usize {
     (n / 4).clamp(8, 512)
 }
 
-pub(super) fn build(
-    triangles: &[[Vec3; 3]],
-    bounds: Aabb,
-    params: &BuildParams,
-    max_depth: u32,
-) -> Flat {
+/// The tree's arrays and the box its root covers (that of the triangles with finite vertices).
+pub(super) fn build(triangles: &[[Vec3; 3]], params: &BuildParams) -> (Flat, Aabb) {
     // Written by index straight into a spare vector (the previous build's root list, when there
     // was one): a filtering collect goes through one growing vector per task and a copy, and
     // faulted in a tenth of the build's fresh pages.
@@ -71,6 +68,18 @@ pub(super) fn build(
     if !refs.par_iter().all(finite) {
         refs.retain(finite);
     }
+    let bounds = refs
+        .par_chunks(CHUNK)
+        .map(|c| {
+            c.iter().fold(Aabb::EMPTY, |b, r| {
+                b.union(&Aabb {
+                    min: r.lo.into(),
+                    max: r.hi.into(),
+                })
+            })
+        })
+        .reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
+    let max_depth = depth_cap(refs.len());
     // A subtree goes to another task only while there are few enough tasks to keep every thread
     // busy with room to balance (16 per thread): each task's nodes are copied once more when
     // appended to its parent's, so finer tasks only add copying.
@@ -84,17 +93,14 @@ pub(super) fn build(
     // The final arrays, reserved at the sizes the ladder's meshes reach with a traversal cost of
     // 15 (about 6 nodes and 4.3 references per triangle; larger costs make fewer), so they
     // rarely grow by copying.
-    let mut out = Flat {
-        nodes: Vec::with_capacity(6 * refs.len()),
-        refs: Vec::with_capacity(5 * refs.len()),
-    };
+    let mut out = Flat::with_capacity(6 * refs.len(), 5 * refs.len());
     if !refs.is_empty() {
         let budget = REFERENCE_BUDGET * refs.len() as f64;
         ctx.node(refs, bounds, 0, budget, &mut out);
     } else {
-        out.nodes.push(Node::leaf(0, 0));
+        out.leaf(std::iter::empty());
     }
-    out
+    (out, bounds)
 }
 
 struct Ctx<'a> {

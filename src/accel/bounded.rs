@@ -17,9 +17,10 @@
 //! its leaves, so the kd-tree walk must never see it (`RefitTree::build` keeps it private).
 
 use super::aabb::Aabb;
+use super::flat::Flat;
 use super::params::BuildParams;
 use super::split::PARALLEL_THRESHOLD;
-use super::tree::{Flat, KdTree, depth_cap};
+use super::tree::{KdTree, depth_cap};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -57,13 +58,11 @@ pub(super) fn build_topology(triangles: Vec<[Vec3; 3]>, params: BuildParams) -> 
     });
     let max_depth = depth_cap(items.len());
     let ctx = Ctx { params, max_depth };
-    let mut out = Flat {
-        nodes: Vec::with_capacity(2 * items.len()),
-        refs: Vec::with_capacity(items.len()),
-    };
+    let mut out = Flat::with_capacity(2 * items.len(), items.len());
     let (centroids, _) = extents(&items);
     ctx.node(&mut items, bounds, centroids, 0, &mut out);
-    KdTree::assemble(out.nodes, out.refs, triangles, bounds, params, start)
+    let (nodes, refs) = out.into_arrays();
+    KdTree::assemble(nodes, refs, triangles, bounds, params, start)
 }
 
 struct Ctx {

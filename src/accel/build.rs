@@ -35,6 +35,11 @@ impl KdTree {
     fn build_with(triangles: Vec<[Vec3; 3]>, params: BuildParams, quadratic: bool) -> KdTree {
         let start = Instant::now();
         let params = params.for_triangles(triangles.len());
+        if params.method == SplitMethod::Sah && !quadratic {
+            let (flat, bounds) = super::binned::build(&triangles, &params);
+            let (nodes, refs) = flat.into_arrays();
+            return KdTree::assemble(nodes, refs, triangles, bounds, params, start);
+        }
         let items: Vec<Item> = triangles
             .iter()
             .enumerate()
@@ -51,10 +56,6 @@ impl KdTree {
             .iter()
             .fold(Aabb::EMPTY, |acc, it| acc.union(&it.bounds));
         let max_depth = depth_cap(items.len());
-        if params.method == SplitMethod::Sah && !quadratic {
-            let flat = super::binned::build(&triangles, bounds, &params, max_depth);
-            return KdTree::assemble(flat.nodes, flat.refs, triangles, bounds, params, start);
-        }
         let root = if params.method == SplitMethod::SahExact && !quadratic {
             super::sah::build(&triangles, items, bounds, &params, max_depth)
         } else {

@@ -5,7 +5,7 @@
 //!
 //! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
 //! shares), `build`, `binned` (the default, with `bins`, `plane_cost`, `small_split` for its
-//! small nodes and `spare`, its pool of reference vectors), `sah` (the exact sweep) and `bounded`
+//! small nodes and `spare`, its pool of reference vectors; `flat` is what it and `bounded` write), `sah` (the exact sweep) and `bounded`
 //! (the refit-friendly topology) are the builders,
 //! `tree` (the compact layout), `traverse` and `refit` (the two walks; `refit_packet` walks
 //! refitted trees in packets, and `box_node` is the layout both refit walks read), `instances` (the
@@ -20,6 +20,7 @@ mod bins;
 mod bounded;
 mod box_node;
 mod build;
+mod flat;
 mod instances;
 mod lanes;
 mod packet;

@@ -166,66 +166,6 @@ pub(super) fn depth_cap(triangles: usize) -> u32 {
     ((8.0 + 1.3 * n.log2()).round() as u32).min(MAX_DEPTH)
 }
 
-/// The final arrays as the fast builders write them: nodes in depth-first order (the below child
-/// right after its parent) and the leaves' primitive references.
-#[derive(Default)]
-pub(super) struct Flat {
-    pub nodes: Vec<Node>,
-    pub refs: Vec<u32>,
-}
-
-impl Flat {
-    pub(super) fn leaf(&mut self, prims: impl ExactSizeIterator<Item = u32>) {
-        self.nodes
-            .push(Node::leaf(self.refs.len() as u32, prims.len() as u32));
-        self.refs.extend(prims);
-    }
-
-    /// Writes an inner node, then its below and above subtrees. With `parallel` (the above
-    /// child's reference count) the above one is built on another rayon task into arrays of its
-    /// own and appended (leaf reference indices shift; above-child offsets are relative and stay
-    /// as they are).
-    pub(super) fn inner(
-        &mut self,
-        axis: usize,
-        pos: f32,
-        parallel: Option<usize>,
-        below: impl FnOnce(&mut Flat) + Send,
-        above: impl FnOnce(&mut Flat) + Send,
-    ) {
-        let here = self.nodes.len();
-        self.nodes.push(Node::inner(axis, pos, 0));
-        let link =
-            |f: &mut Flat| f.nodes[here] = Node::inner(axis, pos, (f.nodes.len() - here) as u32);
-        if let Some(above_refs) = parallel {
-            let ((), other) = rayon::join(
-                || below(self),
-                || {
-                    // Reserved, not grown: growing copies and first-touches the arrays once per
-                    // doubling. Only the pages written are touched, so a generous reserve
-                    // costs nothing; the 1M peer mesh's trees hold about 1.2 nodes and 2.3 leaf
-                    // references per triangle.
-                    let mut o = Flat {
-                        nodes: Vec::with_capacity(2 * above_refs),
-                        refs: Vec::with_capacity(3 * above_refs),
-                    };
-                    above(&mut o);
-                    o
-                },
-            );
-            link(self);
-            let base = self.refs.len() as u32;
-            self.nodes
-                .extend(other.nodes.into_iter().map(|n| n.with_refs_from(base)));
-            self.refs.extend(other.refs);
-        } else {
-            below(self);
-            link(self);
-            above(self);
-        }
-    }
-}
-
 /// Depth-first layout: the below child follows its parent, the above child's offset is stored.
 pub(super) fn flatten(root: BuildNode) -> (Vec<Node>, Vec<u32>) {
     let mut nodes = Vec::new();

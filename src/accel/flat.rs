@@ -1,0 +1,126 @@
+//! The fast builders' output as it is written: nodes in depth-first order (the below child right
+//! after its parent) and the leaves' primitive references, with the subtrees other tasks built
+//! kept aside until the end, where one pass lays the whole tree out.
+
+use super::tree::Node;
+
+/// A tree, or a subtree built on a task of its own, as written so far.
+pub(super) struct Flat {
+    nodes: Vec<Node>,
+    refs: Vec<u32>,
+    /// Subtrees built on other tasks, each belonging before `nodes[at_node]` and `refs[at_ref]`
+    /// (positions in this part's own arrays), in order. Appending each one to its parent as it
+    /// finished copied every node once per level of tasks above it, into fresh pages each time
+    /// (the 1M peer mesh: about a tenth of a one-thread build in copies and page faults).
+    spliced: Vec<Splice>,
+    /// Nodes and references held in `spliced`, at every depth.
+    spliced_nodes: usize,
+    spliced_refs: usize,
+}
+
+struct Splice {
+    at_node: usize,
+    at_ref: usize,
+    part: Flat,
+}
+
+impl Flat {
+    /// Room reserved, not grown: growing copies and first-touches the arrays once per doubling,
+    /// while a generous reserve costs only the pages written.
+    pub(super) fn with_capacity(nodes: usize, refs: usize) -> Flat {
+        Flat {
+            nodes: Vec::with_capacity(nodes),
+            refs: Vec::with_capacity(refs),
+            spliced: Vec::new(),
+            spliced_nodes: 0,
+            spliced_refs: 0,
+        }
+    }
+
+    /// Nodes written so far, counting those of spliced subtrees.
+    fn node_count(&self) -> usize {
+        self.nodes.len() + self.spliced_nodes
+    }
+
+    fn ref_count(&self) -> usize {
+        self.refs.len() + self.spliced_refs
+    }
+
+    /// A leaf over `prims`. Its first reference is counted from the start of this part, spliced
+    /// subtrees included; `into_arrays` moves it to where the part lands.
+    pub(super) fn leaf(&mut self, prims: impl ExactSizeIterator<Item = u32>) {
+        self.nodes
+            .push(Node::leaf(self.ref_count() as u32, prims.len() as u32));
+        self.refs.extend(prims);
+    }
+
+    /// Writes an inner node, then its below and above subtrees. With `parallel` (the above
+    /// child's reference count) the above one is built on another rayon task into a part of its
+    /// own, spliced in after the below subtree (above-child offsets are relative, so only leaf
+    /// references move when the parts are laid out).
+    pub(super) fn inner(
+        &mut self,
+        axis: usize,
+        pos: f32,
+        parallel: Option<usize>,
+        below: impl FnOnce(&mut Flat) + Send,
+        above: impl FnOnce(&mut Flat) + Send,
+    ) {
+        let (here, here_counted) = (self.nodes.len(), self.node_count());
+        self.nodes.push(Node::inner(axis, pos, 0));
+        let link = |f: &mut Flat| {
+            f.nodes[here] = Node::inner(axis, pos, (f.node_count() - here_counted) as u32)
+        };
+        if let Some(above_refs) = parallel {
+            // The 1M peer mesh's trees hold about 1.2 nodes and 2.3 leaf references per
+            // triangle.
+            let ((), part) = rayon::join(
+                || below(self),
+                || {
+                    let mut part = Flat::with_capacity(2 * above_refs, 3 * above_refs);
+                    above(&mut part);
+                    part
+                },
+            );
+            link(self);
+            self.spliced_nodes += part.node_count();
+            self.spliced_refs += part.ref_count();
+            self.spliced.push(Splice {
+                at_node: self.nodes.len(),
+                at_ref: self.refs.len(),
+                part,
+            });
+        } else {
+            below(self);
+            link(self);
+            above(self);
+        }
+    }
+
+    /// The whole tree's nodes and references, each copied once (not at all when no subtree was
+    /// built apart).
+    pub(super) fn into_arrays(self) -> (Vec<Node>, Vec<u32>) {
+        if self.spliced.is_empty() {
+            return (self.nodes, self.refs);
+        }
+        let mut nodes = Vec::with_capacity(self.node_count());
+        let mut refs = Vec::with_capacity(self.ref_count());
+        self.lay_out(&mut nodes, &mut refs);
+        (nodes, refs)
+    }
+
+    fn lay_out(self, nodes: &mut Vec<Node>, refs: &mut Vec<u32>) {
+        let base = refs.len() as u32;
+        let (mut node_from, mut ref_from) = (0, 0);
+        for s in self.spliced {
+            let written = &self.nodes[node_from..s.at_node];
+            nodes.extend(written.iter().map(|n| n.with_refs_from(base)));
+            refs.extend_from_slice(&self.refs[ref_from..s.at_ref]);
+            s.part.lay_out(nodes, refs);
+            (node_from, ref_from) = (s.at_node, s.at_ref);
+        }
+        let rest = &self.nodes[node_from..];
+        nodes.extend(rest.iter().map(|n| n.with_refs_from(base)));
+        refs.extend_from_slice(&self.refs[ref_from..]);
+    }
+}
