@@ -130,18 +130,21 @@ impl RayPre4 {
         }
     }
 
-    /// Lane `i`'s vertex `v` in sheared coordinates: `shear * (v - origin)` as glam computes it,
-    /// `(x_axis * v.x + y_axis * v.y) + z_axis * v.z`, lane by lane.
+    /// Lane `i`'s `v - origin`, the vector the shear multiplies.
     #[inline(always)]
-    fn sheared(&self, v: Vec3) -> [F4; 3] {
-        let rel = [v.x, v.y, v.z].map(F4::splat);
-        let rel = [0, 1, 2].map(|k| rel[k].sub(self.origin[k]));
-        [0, 1, 2].map(|r| {
-            self.cols[0][r]
-                .mul(rel[0])
-                .add(self.cols[1][r].mul(rel[1]))
-                .add(self.cols[2][r].mul(rel[2]))
-        })
+    fn relative(&self, v: Vec3) -> [F4; 3] {
+        let v = [v.x, v.y, v.z].map(F4::splat);
+        [0, 1, 2].map(|k| v[k].sub(self.origin[k]))
+    }
+
+    /// Row `r` of lane `i`'s sheared vertex, from its `relative` vector: row `r` of
+    /// `shear * rel` as glam computes it, `(x_axis * rel.x + y_axis * rel.y) + z_axis * rel.z`.
+    #[inline(always)]
+    fn row(&self, rel: &[F4; 3], r: usize) -> F4 {
+        self.cols[0][r]
+            .mul(rel[0])
+            .add(self.cols[1][r].mul(rel[1]))
+            .add(self.cols[2][r].mul(rel[2]))
     }
 }
 
@@ -177,9 +180,8 @@ pub(super) fn intersect4(
     t_max: F4,
     lanes: u32,
 ) -> (u32, [[f32; 4]; 3]) {
-    let [ax, ay, az] = pre.sheared(tri[0]);
-    let [bx, by, bz] = pre.sheared(tri[1]);
-    let [cx, cy, cz] = pre.sheared(tri[2]);
+    let rel = tri.map(|v| pre.relative(v));
+    let [(ax, ay), (bx, by), (cx, cy)] = rel.map(|r| (pre.row(&r, 0), pre.row(&r, 1)));
     let u = cx.mul(by).sub(cy.mul(bx));
     let v = ax.mul(cy).sub(ay.mul(cx));
     let w = bx.mul(ay).sub(by.mul(ax));
@@ -187,6 +189,12 @@ pub(super) fn intersect4(
     let exact_zero = u.eq(zero).or(v.eq(zero)).or(w.eq(zero)).bits() & lanes;
     let negative = u.lt(zero).or(v.lt(zero)).or(w.lt(zero)).bits();
     let positive = u.gt(zero).or(v.gt(zero)).or(w.gt(zero)).bits();
+    // Most tests end here, every lane outside the triangle: the depths and the division are
+    // computed only where a lane may still hit.
+    if lanes & (exact_zero | !(negative & positive)) == 0 {
+        return (0, [[0.0; 4]; 3]);
+    }
+    let [az, bz, cz] = rel.map(|r| pre.row(&r, 2));
     let det = u.add(v).add(w);
     let t_scaled = u.mul(az).add(v.mul(bz)).add(w.mul(cz));
     // The scalar test's pre-test before the division, lane by lane (see `intersect`).
