@@ -133,8 +133,13 @@ impl RayPre4 {
     /// Lane `i`'s `v - origin`, the vector the shear multiplies.
     #[inline(always)]
     fn relative(&self, v: Vec3) -> [F4; 3] {
-        let v = [v.x, v.y, v.z].map(F4::splat);
-        [0, 1, 2].map(|k| v[k].sub(self.origin[k]))
+        // Written out: `array::map` here is not always inlined, and the walk that calls it out
+        // of line runs a third slower.
+        [
+            F4::splat(v.x).sub(self.origin[0]),
+            F4::splat(v.y).sub(self.origin[1]),
+            F4::splat(v.z).sub(self.origin[2]),
+        ]
     }
 
     /// Row `r` of lane `i`'s sheared vertex, from its `relative` vector: row `r` of
@@ -180,8 +185,14 @@ pub(super) fn intersect4(
     t_max: F4,
     lanes: u32,
 ) -> (u32, [[f32; 4]; 3]) {
-    let rel = tri.map(|v| pre.relative(v));
-    let [(ax, ay), (bx, by), (cx, cy)] = rel.map(|r| (pre.row(&r, 0), pre.row(&r, 1)));
+    let rel = [
+        pre.relative(tri[0]),
+        pre.relative(tri[1]),
+        pre.relative(tri[2]),
+    ];
+    let (ax, ay) = (pre.row(&rel[0], 0), pre.row(&rel[0], 1));
+    let (bx, by) = (pre.row(&rel[1], 0), pre.row(&rel[1], 1));
+    let (cx, cy) = (pre.row(&rel[2], 0), pre.row(&rel[2], 1));
     let u = cx.mul(by).sub(cy.mul(bx));
     let v = ax.mul(cy).sub(ay.mul(cx));
     let w = bx.mul(ay).sub(by.mul(ax));
@@ -194,7 +205,7 @@ pub(super) fn intersect4(
     if lanes & (exact_zero | !(negative & positive)) == 0 {
         return (0, [[0.0; 4]; 3]);
     }
-    let [az, bz, cz] = rel.map(|r| pre.row(&r, 2));
+    let (az, bz, cz) = (pre.row(&rel[0], 2), pre.row(&rel[1], 2), pre.row(&rel[2], 2));
     let det = u.add(v).add(w);
     let t_scaled = u.mul(az).add(v.mul(bz)).add(w.mul(cz));
     // The scalar test's pre-test before the division, lane by lane (see `intersect`).
@@ -215,7 +226,11 @@ pub(super) fn intersect4(
         & ahead
         & !beyond
         & in_range;
-    let mut out = [t, v.mul(inv_det), w.mul(inv_det)].map(F4::to_array);
+    let mut out = [
+        t.to_array(),
+        v.mul(inv_det).to_array(),
+        w.mul(inv_det).to_array(),
+    ];
     if exact_zero != 0 {
         let limits = t_max.to_array();
         for i in (0..4).filter(|i| exact_zero >> i & 1 == 1) {
