@@ -64,7 +64,17 @@ pub(super) fn build(triangles: &[[Vec3; 3]], params: &BuildParams) -> (Flat, Aab
         }
     }));
     // Triangles with a non-finite vertex can never be hit; keep them out of the tree.
-    let finite = |r: &Ref| r.lo.iter().chain(&r.hi).all(|x| x.is_finite());
+    // Six tests written out: an iterator chain here was not inlined (0.8% of a one-thread build's
+    // profile).
+    let finite = |r: &Ref| {
+        let ([a, b, c], [d, e, f]) = (r.lo, r.hi);
+        a.is_finite()
+            & b.is_finite()
+            & c.is_finite()
+            & d.is_finite()
+            & e.is_finite()
+            & f.is_finite()
+    };
     if !refs.par_iter().all(finite) {
         refs.retain(finite);
     }

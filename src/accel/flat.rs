@@ -124,3 +124,39 @@ impl Flat {
         refs.extend_from_slice(&self.refs[ref_from..]);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A synthetic subtree of `depth` levels under the node numbered `id` (children `2 id` and
+    /// `2 id + 1`), each leaf holding a few references named after its number; the subtrees at
+    /// the levels in `apart` are built as parts of their own and spliced, the rest in place.
+    fn write(out: &mut Flat, depth: u32, id: u32, apart: &[u32]) {
+        if depth == 0 {
+            out.leaf(4 * id..4 * id + id % 4);
+            return;
+        }
+        out.inner(
+            depth as usize % 3,
+            id as f32,
+            apart.contains(&depth).then_some(8),
+            |o| write(o, depth - 1, 2 * id, apart),
+            |o| write(o, depth - 1, 2 * id + 1, apart),
+        );
+    }
+
+    #[test]
+    fn spliced_parts_lay_out_as_if_written_in_place() {
+        let mut in_place = Flat::with_capacity(0, 0);
+        write(&mut in_place, 7, 1, &[]);
+        let (nodes, refs) = in_place.into_arrays();
+        assert_eq!((nodes.len(), refs.len()), (255, 192));
+        for apart in [&[7][..], &[7, 6, 3], &[5, 4, 3, 2, 1], &[1]] {
+            let mut spliced = Flat::with_capacity(0, 0);
+            write(&mut spliced, 7, 1, apart);
+            assert!(!spliced.spliced.is_empty());
+            assert_eq!(spliced.into_arrays(), (nodes.clone(), refs.clone()), "{apart:?}");
+        }
+    }
+}

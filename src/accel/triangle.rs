@@ -205,7 +205,11 @@ pub(super) fn intersect4(
     if lanes & (exact_zero | !(negative & positive)) == 0 {
         return (0, [[0.0; 4]; 3]);
     }
-    let (az, bz, cz) = (pre.row(&rel[0], 2), pre.row(&rel[1], 2), pre.row(&rel[2], 2));
+    let (az, bz, cz) = (
+        pre.row(&rel[0], 2),
+        pre.row(&rel[1], 2),
+        pre.row(&rel[2], 2),
+    );
     let det = u.add(v).add(w);
     let t_scaled = u.mul(az).add(v.mul(bz)).add(w.mul(cz));
     // The scalar test's pre-test before the division, lane by lane (see `intersect`).
