@@ -91,8 +91,8 @@ pub(super) fn build(triangles: &[[Vec3; 3]], params: &BuildParams) -> (Flat, Aab
         .reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
     let max_depth = depth_cap(refs.len());
     // A subtree goes to another task only while there are few enough tasks to keep every thread
-    // busy with room to balance (16 per thread): each task's nodes are copied once more when
-    // appended to its parent's, so finer tasks only add copying.
+    // busy with room to balance (16 per thread): finer tasks only add scheduling and parts to
+    // splice.
     let parallel_above = PARALLEL_THRESHOLD.max(refs.len() / (16 * rayon::current_num_threads()));
     let ctx = Ctx {
         triangles,

@@ -156,7 +156,11 @@ mod tests {
             let mut spliced = Flat::with_capacity(0, 0);
             write(&mut spliced, 7, 1, apart);
             assert!(!spliced.spliced.is_empty());
-            assert_eq!(spliced.into_arrays(), (nodes.clone(), refs.clone()), "{apart:?}");
+            assert_eq!(
+                spliced.into_arrays(),
+                (nodes.clone(), refs.clone()),
+                "{apart:?}"
+            );
         }
     }
 }
