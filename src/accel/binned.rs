@@ -29,7 +29,7 @@ use super::lanes::{F4, M4};
 use super::params::BuildParams;
 use super::plane_cost::AxisCost;
 use super::small_split::{EXACT_MAX, exact_split};
-use super::spare::{give, take};
+use super::spare::{CHUNK_CAPACITY, give, give_chunk, take, take_chunk};
 use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, keep, share};
 use super::tree::depth_cap;
 use glam::Vec3;
@@ -39,7 +39,7 @@ use std::cell::RefCell;
 
 /// Above this many references a node bins and partitions on all threads, in chunks of this size.
 const PARALLEL_NODE: usize = 1 << 16;
-const CHUNK: usize = 1 << 14;
+const CHUNK: usize = CHUNK_CAPACITY;
 
 /// Bins for a node of `n` references: one per four references, between 8 and 512. Measured on
 /// the 1M peer mesh, 1 thread: one per four builds 4% faster than one per two (from 16) at the
@@ -319,7 +319,7 @@ impl Ctx<'_> {
             let parts: Vec<(Vec<Ref>, Vec<Ref>)> = refs
                 .par_chunks(CHUNK)
                 .map(|c| {
-                    let (mut below, mut above) = (take(c.len()), take(c.len()));
+                    let (mut below, mut above) = (take_chunk(), take_chunk());
                     self.partition_into(c, s, &mut below, &mut above);
                     (below, above)
                 })
@@ -330,8 +330,8 @@ impl Ctx<'_> {
             for (b, a) in parts {
                 below.extend_from_slice(&b);
                 above.extend_from_slice(&a);
-                give(b);
-                give(a);
+                give_chunk(b);
+                give_chunk(a);
             }
             (below, above)
         } else {
