@@ -244,12 +244,12 @@ impl Ctx<'_> {
         // Per axis, the boundary index of its cheapest plane (the first of equal ones), kept
         // as the node's best in axis order: the first cheapest boundary in visiting order.
         let mut axis_best = [None::<(f32, usize)>; 3];
+        let costs = AxisCost::per_axis(self.params, node_box);
         for (axis, axis_best) in axis_best.iter_mut().enumerate() {
             if grid.extent[axis] <= 0.0 {
                 continue;
             }
-            let cost = AxisCost::new(self.params, node_box, axis);
-            *axis_best = counts.cheapest_boundary(axis, &grid, node_box, &cost, n as u32);
+            *axis_best = counts.cheapest_boundary(axis, &grid, node_box, &costs[axis], n as u32);
             if let Some((c, k)) = *axis_best {
                 let pos = grid.origin[axis] + k as f32 * (grid.extent[axis] / grid.count as f32);
                 keep(&mut best, c, axis, pos, false);
@@ -261,7 +261,16 @@ impl Ctx<'_> {
         if let Some((_, chosen)) = best {
             let axis = chosen.axis;
             if let Some((_, k)) = axis_best[axis] {
-                self.refine(refs, node_box, &grid, &counts, (axis, k - 1), &mut best);
+                let window = (axis, k - 1);
+                self.refine(
+                    refs,
+                    node_box,
+                    &grid,
+                    &counts,
+                    &costs[axis],
+                    window,
+                    &mut best,
+                );
             }
         }
         BIN_STORE.set(counts.counts);
@@ -276,6 +285,7 @@ impl Ctx<'_> {
         node_box: &Aabb,
         grid: &Grid,
         counts: &Bins,
+        cost: &AxisCost,
         (axis, first): (usize, usize),
         best: &mut Option<(f32, Split)>,
     ) {
@@ -297,7 +307,6 @@ impl Ctx<'_> {
             // SAFETY: the first `len` entries of the spare room were written above.
             unsafe { ev.set_len(len) };
             ev.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-            let cost = AxisCost::new(self.params, node_box, axis);
             let started: u32 = counts.lo(axis)[..first].iter().sum();
             let ended: u32 = counts.hi(axis)[..first].iter().sum();
             sweep(
@@ -305,7 +314,7 @@ impl Ctx<'_> {
                 (started, refs.len() as u32 - ended),
                 node_box,
                 axis,
-                &cost,
+                cost,
                 best,
             );
         });

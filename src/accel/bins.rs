@@ -213,7 +213,7 @@ mod tests {
             }
             for axis in 0..3 {
                 let n: u32 = bins.lo(axis).iter().sum();
-                let cost = AxisCost::new(&params, &node, axis);
+                let cost = AxisCost::per_axis(&params, &node)[axis];
                 let width = grid.extent[axis] / count as f32;
                 let (mut started, mut ended, mut want) = (0, 0, None::<(f32, usize)>);
                 for k in 1..count {

@@ -10,6 +10,7 @@ use super::params::BuildParams;
 /// A plane at offset `l` from the node's lower face gives a below child of area
 /// 2 (e1 e2 + l (e1 + e2)) for the other two extents e1, e2, so each candidate costs two
 /// multiply-adds (no division, no box).
+#[derive(Clone, Copy)]
 pub(super) struct AxisCost {
     pub e1e2: f32,
     pub e1_plus_e2: f32,
@@ -21,17 +22,23 @@ pub(super) struct AxisCost {
 }
 
 impl AxisCost {
-    pub fn new(p: &BuildParams, b: &Aabb, axis: usize) -> AxisCost {
+    /// The three axes' constants of one node, its area and the division computed once (a
+    /// node's search asks for all three, its refinement for one again).
+    pub fn per_axis(p: &BuildParams, b: &Aabb) -> [AxisCost; 3] {
         let d = (b.max - b.min).to_array();
-        let (e1, e2) = (d[(axis + 1) % 3], d[(axis + 2) % 3]);
-        AxisCost {
-            e1e2: e1 * e2,
-            e1_plus_e2: e1 + e2,
-            extent: d[axis],
-            scale: 2.0 * p.intersection_cost / b.surface_area(),
-            traversal: p.traversal_cost,
-            empty_factor: 1.0 - p.empty_bonus,
-        }
+        let scale = 2.0 * p.intersection_cost / b.surface_area();
+        let axis_cost = |axis: usize| {
+            let (e1, e2) = (d[(axis + 1) % 3], d[(axis + 2) % 3]);
+            AxisCost {
+                e1e2: e1 * e2,
+                e1_plus_e2: e1 + e2,
+                extent: d[axis],
+                scale,
+                traversal: p.traversal_cost,
+                empty_factor: 1.0 - p.empty_bonus,
+            }
+        };
+        [axis_cost(0), axis_cost(1), axis_cost(2)]
     }
 
     /// Counts as `u32`: one instruction each to convert (a `usize` takes a sign test too).

@@ -49,6 +49,7 @@ fn search<const GROUPS: usize>(
 ) -> Option<(f32, Split)> {
     let (zero, one) = (F4::splat(0.0), F4::splat(1.0));
     let mut best = None;
+    let costs = AxisCost::per_axis(params, node_box);
     for axis in 0..3 {
         let (min, max) = (node_box.min[axis], node_box.max[axis]);
         if max <= min {
@@ -63,7 +64,7 @@ fn search<const GROUPS: usize>(
             bounds[0][i / 4][i % 4] = r.lo[axis];
             bounds[1][i / 4][i % 4] = r.hi[axis];
         }
-        let cost = AxisCost::new(params, node_box, axis);
+        let cost = &costs[axis];
         for kind in &bounds {
             for group in kind {
                 let pos = F4::new(*group);
@@ -110,7 +111,7 @@ mod tests {
             if max <= min {
                 continue;
             }
-            let cost = AxisCost::new(p, node_box, axis);
+            let cost = AxisCost::per_axis(p, node_box)[axis];
             let candidates = refs.iter().map(|r| r.lo[axis]);
             for pos in candidates.chain(refs.iter().map(|r| r.hi[axis])) {
                 if !(pos > min && pos < max) {
