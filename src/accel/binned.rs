@@ -261,16 +261,8 @@ impl Ctx<'_> {
         if let Some((_, chosen)) = best {
             let axis = chosen.axis;
             if let Some((_, k)) = axis_best[axis] {
-                let window = (axis, k - 1);
-                self.refine(
-                    refs,
-                    node_box,
-                    &grid,
-                    &counts,
-                    &costs[axis],
-                    window,
-                    &mut best,
-                );
+                let (binning, window) = ((&grid, &counts), (axis, k - 1));
+                self.refine(refs, node_box, binning, &costs[axis], window, &mut best);
             }
         }
         BIN_STORE.set(counts.counts);
@@ -278,13 +270,13 @@ impl Ctx<'_> {
     }
 
     /// The exact event sweep over the reference bounds in bins `first` and `first + 1` of `axis`,
-    /// starting from the counts of the bins before them.
+    /// starting from the counts (of the node's binning, `grid` and `counts`) of the bins before
+    /// them.
     fn refine(
         &self,
         refs: &[Ref],
         node_box: &Aabb,
-        grid: &Grid,
-        counts: &Bins,
+        (grid, counts): (&Grid, &Bins),
         cost: &AxisCost,
         (axis, first): (usize, usize),
         best: &mut Option<(f32, Split)>,

@@ -50,7 +50,7 @@ fn search<const GROUPS: usize>(
     let (zero, one) = (F4::splat(0.0), F4::splat(1.0));
     let mut best = None;
     let costs = AxisCost::per_axis(params, node_box);
-    for axis in 0..3 {
+    for (axis, cost) in costs.iter().enumerate() {
         let (min, max) = (node_box.min[axis], node_box.max[axis]);
         if max <= min {
             continue;
@@ -64,7 +64,6 @@ fn search<const GROUPS: usize>(
             bounds[0][i / 4][i % 4] = r.lo[axis];
             bounds[1][i / 4][i % 4] = r.hi[axis];
         }
-        let cost = &costs[axis];
         for kind in &bounds {
             for group in kind {
                 let pos = F4::new(*group);
