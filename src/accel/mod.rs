@@ -5,8 +5,9 @@
 //!
 //! Files: `aabb` (the box), `params` (build constants), `split` (the split rules every builder
 //! shares), `build`, `binned` (the default, with `bins`, `plane_cost`, `small_split` for its
-//! small nodes and `spare`, its pool of reference vectors; `flat` is what it and `bounded` write), `sah` (the exact sweep) and `bounded`
-//! (the refit-friendly topology) are the builders,
+//! small nodes and `spare`, its pools of reference vectors), `sah` (the exact sweep) and
+//! `bounded` (the refit-friendly topology) are the builders, and `flat` is what `binned` and
+//! `bounded` write,
 //! `tree` (the compact layout), `traverse` and `refit` (the two walks; `refit_packet` walks
 //! refitted trees in packets, and `box_node` is the layout both refit walks read), `instances` (the
 //! two-level top), `update` (the per-frame policy), `stats`, `triangle` (the watertight ray-
