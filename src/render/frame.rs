@@ -4,7 +4,9 @@
 
 use super::camera::EyeCamera;
 use super::integrator::{Integrator, Primary, PrimaryRecord, RayCounts};
-use super::reproject::{EdgeTest, PixelReuse, Reprojection, Sample, SourcePixels, SourceTile};
+use super::reproject::{
+    EdgeTest, FinishedTile, PixelReuse, Reprojection, Sample, SourcePixels, SourceTile,
+};
 use super::sampling::pixel_sample;
 use crate::accel::{Intersect, LANES, Ray};
 use crate::output::Image;
@@ -132,7 +134,7 @@ pub fn render_views<A: Intersect>(
                 return TileResult {
                     pixels,
                     counts: RayCounts::default(),
-                    source,
+                    source: source.map(SourceTile::finish),
                 };
             }
             let packets = Packets {
@@ -204,10 +206,11 @@ pub fn render_views<A: Intersect>(
             let mut counts = counts.get();
             counts.reused_primary += radiance_taken + misses_taken;
             counts.reused_radiance += radiance_taken;
+            // The tile's samples are folded here, on its own thread, and then dropped.
             TileResult {
                 pixels,
                 counts,
-                source,
+                source: source.map(SourceTile::finish),
             }
         })
         .collect();
@@ -274,7 +277,7 @@ impl<A: Intersect> Packets<'_, '_, A> {
         let mut radiance = [Vec3::ZERO; LANES];
         let mut records = [PrimaryRecord::NONE; LANES];
         let mut known = [None; LANES];
-        let mut film_x = [0.0; LANES];
+        let mut film_offset = [Vec2::ZERO; LANES];
         let n = lanes.len();
         for s in 0..spp {
             for (i, lane) in lanes.iter().enumerate() {
@@ -288,7 +291,7 @@ impl<A: Intersect> Packets<'_, '_, A> {
                     Some(PixelReuse::Hits(h)) => h.verify(&ray, limit, geometry),
                     _ => None,
                 };
-                (rays[i], limits[i], known[i], film_x[i]) = (ray, limit, hit, o.x);
+                (rays[i], limits[i], known[i], film_offset[i]) = (ray, limit, hit, o);
             }
             let primary = match role {
                 ViewRole::Plain => Primary::Trace,
@@ -309,7 +312,8 @@ impl<A: Intersect> Packets<'_, '_, A> {
                 for (i, lane) in lanes.iter().enumerate() {
                     let p = records[i].point;
                     let sample = Sample {
-                        film_x: film_x[i],
+                        film_x: film_offset[i].x,
+                        film_y: film_offset[i].y,
                         depth: self.views[0].camera.depth(p),
                         distance: p.distance(self.eye),
                     };
@@ -328,5 +332,5 @@ impl<A: Intersect> Packets<'_, '_, A> {
 struct TileResult {
     pixels: Vec<Vec<Vec3>>,
     counts: RayCounts,
-    source: Option<SourceTile>,
+    source: Option<FinishedTile>,
 }

@@ -49,9 +49,40 @@ pub fn pixel_sample(s: u32, spp: u32, seed: [u32; 3]) -> Vec2 {
     }
 }
 
+/// How far, per axis, the mean of a pixel's `spp` sample positions may lie from the pixel's
+/// centre, in pixels. An n x n grid jitters each sample within its column's 1/n, so the mean
+/// lies within 1/(2n). The Hammersley sets' y coordinates are stratified only for powers of
+/// two: other counts are given half a pixel, as if unstratified.
+pub fn centroid_bound(spp: usize) -> f32 {
+    let n = (spp as f64).sqrt() as usize;
+    if n * n == spp && n > 0 {
+        0.5 / n as f32
+    } else {
+        0.5
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sample_means_stay_within_the_centroid_bound() {
+        for spp in [1u32, 2, 3, 4, 5, 9, 16, 64] {
+            let bound = centroid_bound(spp as usize);
+            for pixel in 0..200 {
+                let mean = (0..spp)
+                    .map(|s| pixel_sample(s, spp, [pixel, 3, 1]))
+                    .sum::<Vec2>()
+                    / spp as f32;
+                let off = (mean - Vec2::splat(0.5)).abs().max_element();
+                assert!(
+                    off <= bound + 1e-6,
+                    "{spp} spp, pixel {pixel}: {off} > {bound}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn square_counts_put_one_sample_in_each_stratum() {

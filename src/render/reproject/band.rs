@@ -4,7 +4,7 @@
 //! independently, and the plans do not depend on the thread count.
 
 use super::source::{SourcePixel, SourcePixels};
-use super::{LOBE_FRACTION, MAX_PARALLAX_SPREAD, RADIANCE_SPREAD};
+use super::{LOBE_FRACTION, MAX_PARALLAX_SPREAD, RADIANCE_BOUND};
 use crate::accel::prefetch;
 use glam::Vec3;
 use std::ops::Range;
@@ -69,11 +69,16 @@ pub(super) struct Cell {
     pub indirect: bool,
     pub lit: u32,
     pub shadowed: u32,
-    /// The landed radiance, each source pixel's mean weighted by the part of it that landed
-    /// here, the weights' sum, and bounds of the samples' radiance per channel (a pixel's mean
-    /// give or take its spread).
+    /// The landed radiance, each source pixel's value weighted by the part of it that landed
+    /// here, and the weights' sum.
     pub weight: f32,
     pub radiance: Vec3,
+    /// Pixels whose radiance is a plane landed (`plane.rs`), and the largest of their bounds.
+    pub planes: bool,
+    pub plane_bound: f32,
+    /// Pixels with too few hits for a plane landed, and bounds of their samples' radiance per
+    /// channel (each pixel's mean give or take its spread).
+    pub means: bool,
     pub radiance_lo: Vec3,
     pub radiance_hi: Vec3,
 }
@@ -91,6 +96,9 @@ impl Default for Cell {
             shadowed: 0,
             weight: 0.0,
             radiance: Vec3::ZERO,
+            planes: false,
+            plane_bound: 0.0,
+            means: false,
             radiance_lo: Vec3::INFINITY,
             radiance_hi: Vec3::NEG_INFINITY,
         }
@@ -109,15 +117,9 @@ impl Cell {
         ];
     }
 
-    /// Adds the hits of source pixel `p`, of which the part `share` lands here; `bounds` are
-    /// the bounds of their radiance where it may stand for the target's.
-    pub fn add_hits(
-        &mut self,
-        p: &SourcePixel,
-        parallax: [f32; 2],
-        share: f32,
-        bounds: Option<[Vec3; 2]>,
-    ) {
+    /// Adds the hits of source pixel `p`, of which the part `share` lands here; `direct` where
+    /// their radiance may stand for the target's.
+    pub fn add_hits(&mut self, p: &SourcePixel, parallax: [f32; 2], share: f32, direct: bool) {
         self.land(parallax);
         self.lit |= p.lit;
         self.shadowed |= p.shadowed;
@@ -125,23 +127,34 @@ impl Cell {
         for &prim in &p.prims[..p.distinct as usize] {
             self.add_prim(prim);
         }
-        if let Some([lo, hi]) = bounds {
-            self.weight += share;
-            self.radiance += share * p.radiance;
-            self.radiance_lo = self.radiance_lo.min(lo);
-            self.radiance_hi = self.radiance_hi.max(hi);
-        } else {
+        self.add_radiance(p, share, direct);
+    }
+
+    /// Adds the radiance of source pixel `p`, of which the part `share` lands here, where it
+    /// may stand for the target's (`direct`).
+    pub fn add_radiance(&mut self, p: &SourcePixel, share: f32, direct: bool) {
+        if !direct {
             self.indirect = true;
+            return;
+        }
+        self.weight += share;
+        self.radiance += share * p.radiance;
+        if p.plane() {
+            self.planes = true;
+            self.plane_bound = self.plane_bound.max(p.radiance_bound);
+        } else {
+            self.means = true;
+            self.radiance_lo = self.radiance_lo.min(p.radiance - p.radiance_bound);
+            self.radiance_hi = self.radiance_hi.max(p.radiance + p.radiance_bound);
         }
     }
 
-    /// Adds one hit on `prim` of source pixel `p` (a pixel across a depth edge) at `parallax`:
-    /// the pixel's shadow answers, and no radiance (it mixes both sides of the edge).
+    /// Adds one hit on `prim` of source pixel `p` (a pixel that keeps its samples) at
+    /// `parallax`: the pixel's shadow answers, and no radiance.
     pub fn add_hit(&mut self, prim: u32, p: &SourcePixel, parallax: f32) {
         self.land([parallax, parallax]);
         self.lit |= p.lit;
         self.shadowed |= p.shadowed;
-        self.indirect = true;
         self.add_prim(prim);
     }
 
@@ -206,9 +219,19 @@ pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: 
             let direct = landing
                 .baseline
                 .is_some_and(|b| p.reach >= 0.0 && b <= LOBE_FRACTION * p.reach);
+            // Where the pixel's hits lie in the target row: its samples' span, moved by their
+            // parallax range.
+            let (from, to) = p.film_span();
+            let (from, to) = (x + from, x + to);
+            let (p0, p1) = (
+                landing.a + landing.b * p.inv_depth[0],
+                landing.a + landing.b * p.inv_depth[1],
+            );
+            let parallax = [p0.min(p1), p0.max(p1)];
+            let (hits_from, hits_to) = (from + parallax[0], to + parallax[1]);
             if let Some((first, n)) = p.edge_samples() {
-                // Across a depth edge: each sample lands where it moves to, and what lies
-                // between them is a hole. Their mean radiance mixes both sides.
+                // Across a depth edge (or over more triangles than it holds): each sample lands
+                // where it moves to, and what lies between them is a hole.
                 for e in &edges[first..first + n] {
                     let q = landing.a + landing.b * e.inv_depth;
                     let at = x + e.film_x + q;
@@ -218,19 +241,19 @@ pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: 
                         false => {}
                     }
                 }
+                // Their radiance mixes both sides of a depth edge. A pixel that only hit more
+                // triangles than it holds (a finely tessellated surface) lands its radiance as
+                // any pixel does.
+                let spread = parallax[1] - parallax[0];
+                let depth_edge = p.misses > 0 || spread > MAX_PARALLAX_SPREAD || spread.is_nan();
+                splat(row, hits_from, hits_to, |c, w| {
+                    c.add_radiance(p, w, direct && !depth_edge)
+                });
                 continue;
             }
-            let (from, to) = p.film_span();
-            let (from, to) = (x + from, x + to);
             if p.hits > 0 {
-                let (p0, p1) = (
-                    landing.a + landing.b * p.inv_depth[0],
-                    landing.a + landing.b * p.inv_depth[1],
-                );
-                let parallax = [p0.min(p1), p0.max(p1)];
-                let bounds = direct.then(|| [p.radiance - p.spread, p.radiance + p.spread]);
-                splat(row, from + parallax[0], to + parallax[1], |c, w| {
-                    c.add_hits(p, parallax, w, bounds)
+                splat(row, hits_from, hits_to, |c, w| {
+                    c.add_hits(p, parallax, w, direct)
                 });
             }
             if p.misses > 0 && landing.misses {
@@ -293,21 +316,48 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
 }
 
 /// `"reproject-radiance"`: pixel `x`'s landed radiance, where the pixel and its two row
-/// neighbours hold only hits that may stand for the target's, whose samples agree within
-/// `RADIANCE_SPREAD` per channel (a flat patch: which part of the pixel a sample covered does
-/// not matter). The pixel also needs its window to pass rules 1-3.
+/// neighbours (three pixels) hold only hits that may stand for the target's and a bound on its error within
+/// `RADIANCE_BOUND` per channel. The pixel also needs its window to pass rules 1-3.
+/// - Where every pixel landed there has a plane (`plane.rs`), the landed value is the planes'
+///   centre values interpolated along the row (the landing's overlap weights), so the error is
+///   the planes' largest bound plus how far the three values bend away from a line (their
+///   second difference, about eight times the interpolation's error on a smooth curve). At
+///   the film's border the three are the pixel and the two beside it inwards.
+/// - Where none has (too few samples a pixel), the samples must agree: the window's bounds of
+///   their radiance (a flat patch, where which part of the pixel a sample covered does not
+///   matter).
+/// - Where both kinds landed, it traces.
 fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
-    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-    for c in &row[around(x, 1, row.len())] {
-        if c.weight <= 0.0 || c.indirect || c.miss {
-            return None;
-        }
-        lo = lo.min(c.radiance_lo);
-        hi = hi.max(c.radiance_hi);
+    // At the film's border, the three pixels nearest it.
+    let first = x.saturating_sub(1).min(row.len().saturating_sub(3));
+    let window = &row[first..(first + 3).min(row.len())];
+    if window
+        .iter()
+        .any(|c| c.weight <= 0.0 || c.indirect || c.miss)
+    {
+        return None;
     }
-    let flat = (hi - lo).max_element() <= RADIANCE_SPREAD;
+    let error = if window.iter().all(|c| !c.means) {
+        let value = |c: &Cell| c.radiance / c.weight;
+        let bend = match window {
+            [a, b, c] => value(a) - 2.0 * value(b) + value(c),
+            [a, b] => value(a) - value(b),
+            _ => return None,
+        };
+        let bound = window.iter().map(|c| c.plane_bound).fold(0.0, f32::max);
+        bound + bend.abs().max_element()
+    } else if window.iter().all(|c| !c.planes) {
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for c in window {
+            lo = lo.min(c.radiance_lo);
+            hi = hi.max(c.radiance_hi);
+        }
+        (hi - lo).max_element()
+    } else {
+        return None;
+    };
     let c = &row[x];
-    flat.then(|| c.radiance / c.weight)
+    (error <= RADIANCE_BOUND).then(|| c.radiance / c.weight)
 }
 
 /// The rows of cells and row windows a band works on: three, the rules' window, reused row

@@ -43,9 +43,10 @@ use rayon::prelude::*;
 use std::ops::Range;
 
 mod band;
+mod plane;
 mod source;
 
-pub use source::{EdgeTest, Sample, SourcePixels, SourceTile};
+pub use source::{EdgeTest, FinishedTile, Sample, SourcePixels, SourceTile};
 
 /// `"reproject-radiance"`: the angle between the eyes' view directions may be at most this
 /// fraction of a surface's GGX lobe width. At a tenth of the width the half vector moves by a
@@ -53,9 +54,9 @@ pub use source::{EdgeTest, Sample, SourcePixels, SourceTile};
 /// `(1 + d^2 / alpha^2)^-2` with the angle `d` off the peak).
 pub const LOBE_FRACTION: f32 = 0.1;
 
-/// `"reproject-radiance"`: the largest spread of the reused samples' radiance over a pixel and
-/// its row neighbours, per channel (the per-channel error `compare --fail` counts, 0.02).
-pub const RADIANCE_SPREAD: f32 = 0.02;
+/// `"reproject-radiance"`: the largest error bound of a reused pixel radiance, per channel
+/// (the per-channel error `compare --fail` counts, 0.02).
+pub const RADIANCE_BOUND: f32 = 0.02;
 
 /// Rule 2's bound, pixels: a disocclusion narrower than half a pixel hides at most part of a
 /// sample's footprint.

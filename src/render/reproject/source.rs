@@ -5,6 +5,7 @@
 
 use super::super::integrator::PrimaryRecord;
 use super::MAX_PARALLAX_SPREAD;
+use super::plane::{self, PLANE_SAMPLES, ShadedSample};
 use glam::Vec3;
 
 /// Distinct triangles a source pixel remembers. A pixel that saw more is marked, and the target
@@ -38,9 +39,10 @@ pub struct SourcePixel {
     /// `baseline / reach` of its lobe width. Negative where a hit's radiance cannot stand for
     /// another view's (mirror, glass, BLEND, MASK: `PrimaryRecord::lobe`).
     pub(super) reach: f32,
-    /// The hits' mean radiance, and how far any hit's radiance lies from it in any channel.
+    /// The hits' radiance at the pixel's centre and its bound (`plane::PixelRadiance`): a
+    /// plane's where `plane()`, else the hits' mean and how far any lies from it.
     pub(super) radiance: Vec3,
-    pub(super) spread: f32,
+    pub(super) radiance_bound: f32,
     /// A pixel across a depth edge (or that hit more triangles than it holds) keeps its landing
     /// samples: `edge..edge + landed()` of its tile's `EdgeSample`s. `u32::MAX` elsewhere.
     pub(super) edge: u32,
@@ -86,7 +88,7 @@ impl Default for SourcePixel {
             shadowed: 0,
             reach: f32::INFINITY,
             radiance: Vec3::ZERO,
-            spread: 0.0,
+            radiance_bound: 0.0,
             edge: NO_EDGE,
         }
     }
@@ -94,15 +96,9 @@ impl Default for SourcePixel {
 
 impl SourcePixel {
     /// Adds a camera sample: where it lies in the pixel along x (0..1), what its ray found,
-    /// its radiance, and (for a hit) the hit's depth along the rig's axis and distance from the
-    /// eye. Sums the hits' radiance, and keeps its range per channel in `range`.
-    pub(super) fn add(
-        &mut self,
-        sample: Sample,
-        record: &PrimaryRecord,
-        radiance: Vec3,
-        range: &mut [Vec3; 2],
-    ) {
+    /// and (for a hit) the hit's depth along the rig's axis and distance from the eye. The
+    /// hits' radiance is set from their samples once the pixel is done (`plane::fit`).
+    pub(super) fn add(&mut self, sample: Sample, record: &PrimaryRecord) {
         if record.through_cut_out {
             return;
         }
@@ -135,8 +131,11 @@ impl SourcePixel {
             -1.0
         };
         self.reach = self.reach.min(reach);
-        self.radiance += radiance;
-        *range = [range[0].min(radiance), range[1].max(radiance)];
+    }
+
+    /// Whether its radiance is a plane's (enough hits to test one): see `plane.rs`.
+    pub(super) fn plane(&self) -> bool {
+        usize::from(self.hits) >= PLANE_SAMPLES
     }
 
     /// Samples that landed: hits and misses.
@@ -150,11 +149,12 @@ impl SourcePixel {
     }
 }
 
-/// Where a camera sample lies: its film x within its pixel (0..1), and its hit's depth along
-/// the rig's axis and distance from the eye (unused for a miss).
+/// Where a camera sample lies: its film x and y within its pixel (0..1), and its hit's depth
+/// along the rig's axis and distance from the eye (unused for a miss).
 #[derive(Clone, Copy, Debug)]
 pub struct Sample {
     pub film_x: f32,
+    pub film_y: f32,
     pub depth: f32,
     pub distance: f32,
 }
@@ -172,8 +172,8 @@ impl SourcePixel {
 /// One tile of source pixels, row-major, as the tile is traced.
 pub struct SourceTile {
     pixels: Vec<SourcePixel>,
-    /// Each pixel's range of hit radiance per channel, until the tile is done.
-    ranges: Vec<[Vec3; 2]>,
+    /// Every hit sample's place and radiance, `spp` per pixel, until the tile is done.
+    shaded: Vec<ShadedSample>,
     /// Every landing sample of the tile, `spp` per pixel, until the tile is done.
     samples: Vec<EdgeSample>,
     spp: usize,
@@ -185,7 +185,7 @@ impl SourceTile {
     pub fn new(pixels: usize, spp: usize, edge_test: EdgeTest) -> SourceTile {
         SourceTile {
             pixels: vec![SourcePixel::default(); pixels],
-            ranges: vec![[Vec3::INFINITY, Vec3::NEG_INFINITY]; pixels],
+            shaded: vec![ShadedSample::default(); pixels * spp],
             samples: vec![EdgeSample::default(); pixels * spp],
             spp,
             edge_test,
@@ -193,11 +193,18 @@ impl SourceTile {
         }
     }
 
-    /// Adds a camera sample of pixel `i` (see `SourcePixel::add`).
+    /// Adds a camera sample of pixel `i` and its radiance (see `SourcePixel::add`).
     pub fn add(&mut self, i: usize, sample: Sample, record: &PrimaryRecord, radiance: Vec3) {
         let p = &mut self.pixels[i];
-        let landed = p.landed();
-        p.add(sample, record, radiance, &mut self.ranges[i]);
+        let (landed, hits) = (p.landed(), usize::from(p.hits));
+        p.add(sample, record);
+        if usize::from(p.hits) > hits && hits < self.spp {
+            self.shaded[i * self.spp + hits] = ShadedSample {
+                x: sample.film_x,
+                y: sample.film_y,
+                radiance,
+            };
+        }
         if p.landed() > landed && landed < self.spp {
             let (inv_depth, prim) = match record.hit {
                 Some(h) => (1.0 / sample.depth, h.prim),
@@ -214,14 +221,17 @@ impl SourceTile {
         }
     }
 
-    /// The tile's pixels, and the samples of those across a depth edge.
-    fn finish(mut self) -> (Vec<SourcePixel>, Vec<EdgeSample>) {
+    /// The tile done: its pixels' radiance fitted, and the samples of those across a depth
+    /// edge kept.
+    pub fn finish(mut self) -> FinishedTile {
         let mut edges = Vec::new();
         let test = self.edge_test;
-        for ((i, p), [lo, hi]) in self.pixels.iter_mut().enumerate().zip(self.ranges) {
+        for (i, p) in self.pixels.iter_mut().enumerate() {
             if p.hits > 0 {
-                p.radiance /= f32::from(p.hits);
-                p.spread = (hi - p.radiance).max(p.radiance - lo).max_element();
+                let first = i * self.spp;
+                let hits = usize::from(p.hits).min(self.spp);
+                let fitted = plane::fit(&self.shaded[first..first + hits], self.spp);
+                (p.radiance, p.radiance_bound) = (fitted.value, fitted.bound);
             }
             let mut nearest = p.inv_depth[0];
             if p.misses > 0 && test.misses_land {
@@ -234,8 +244,20 @@ impl SourceTile {
                 edges.extend_from_slice(&self.samples[i * self.spp..i * self.spp + n]);
             }
         }
-        (self.pixels, edges)
+        FinishedTile {
+            pixels: self.pixels,
+            edges,
+            nearest_inv_depth: self.nearest_inv_depth,
+        }
     }
+}
+
+/// A source tile's pixels, the samples of those across a depth edge, and the largest inverse
+/// depth it hit.
+pub struct FinishedTile {
+    pixels: Vec<SourcePixel>,
+    edges: Vec<EdgeSample>,
+    nearest_inv_depth: f32,
 }
 
 /// The source view's pixels as its tiles made them (`tile` x `tile` pixels each, in row-major
@@ -244,13 +266,13 @@ pub struct SourcePixels {
     width: usize,
     height: usize,
     tile: usize,
-    tiles: Vec<(Vec<SourcePixel>, Vec<EdgeSample>)>,
+    tiles: Vec<FinishedTile>,
     nearest_inv_depth: f32,
 }
 
 impl SourcePixels {
     pub fn new(
-        tiles: Vec<SourceTile>,
+        tiles: Vec<FinishedTile>,
         (width, height): (usize, usize),
         tile: usize,
     ) -> SourcePixels {
@@ -262,7 +284,7 @@ impl SourcePixels {
             width,
             height,
             tile,
-            tiles: tiles.into_iter().map(SourceTile::finish).collect(),
+            tiles,
             nearest_inv_depth,
         }
     }
@@ -287,7 +309,7 @@ impl SourcePixels {
         (0..tiles_x).map(move |tx| {
             let x0 = tx * self.tile;
             let tw = (x0 + self.tile).min(self.width) - x0;
-            let (pixels, edges) = &self.tiles[ty * tiles_x + tx];
+            let FinishedTile { pixels, edges, .. } = &self.tiles[ty * tiles_x + tx];
             (x0, &pixels[ry * tw..(ry + 1) * tw], edges.as_slice())
         })
     }

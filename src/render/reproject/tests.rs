@@ -29,11 +29,21 @@ fn hit_pixel(prim: u32) -> SourcePixel {
     };
     let sample = source::Sample {
         film_x: 0.5,
+        film_y: 0.5,
         depth: 1.0,
         distance: 1.0,
     };
-    let mut range = [Vec3::ONE; 2];
-    p.add(sample, &record, Vec3::ONE, &mut range);
+    p.add(sample, &record);
+    p.radiance = Vec3::ONE;
+    p
+}
+
+/// As `hit_pixel`, with enough hits for a plane of centre value `value` and bound `bound`.
+fn plane_pixel(prim: u32, value: Vec3, bound: f32) -> SourcePixel {
+    let mut p = hit_pixel(prim);
+    p.hits = plane::PLANE_SAMPLES as u16;
+    (p.radiance, p.radiance_bound) = (value, bound);
+    assert!(p.plane());
     p
 }
 
@@ -51,12 +61,7 @@ impl Grid {
         for y in 0..height {
             for x in 0..width {
                 let p = parallax(x, y);
-                cells[y * width + x].add_hits(
-                    &hit_pixel((x / 4) as u32),
-                    [p, p],
-                    1.0,
-                    Some([Vec3::ONE; 2]),
-                );
+                cells[y * width + x].add_hits(&hit_pixel((x / 4) as u32), [p, p], 1.0, true);
             }
         }
         Grid {
@@ -186,6 +191,70 @@ fn a_flat_rough_pixel_takes_its_samples_mean_radiance_and_an_edge_does_not() {
     ));
 }
 
+/// Row 2 of a grid whose cells each hold one plane pixel of value `value(x)` and bound `bound`:
+/// the radiance each pixel of the row takes, if any.
+fn plane_row(value: impl Fn(usize) -> Vec3, bound: f32) -> Vec<Option<Vec3>> {
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
+    for y in 0..5 {
+        for x in 0..20 {
+            *g.cell(x, y) = Cell::default();
+            g.cell(x, y)
+                .add_hits(&plane_pixel(1, value(x), bound), [0.0; 2], 1.0, true);
+        }
+    }
+    let plans = g.plan(true);
+    (0..20)
+        .map(|x| match plans.pixel(x, 2) {
+            Some(PixelReuse::Radiance(v)) => Some(v),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_smooth_gradient_of_planes_takes_the_radiance_a_flat_rule_would_refuse() {
+    // 0.05 a pixel: neighbours differ by more than the bound, but the row is a line.
+    let ramp = |x: usize| Vec3::splat(0.1 + 0.05 * x as f32);
+    let row = plane_row(ramp, 0.005);
+    for (x, v) in row.iter().enumerate() {
+        assert!(
+            v.is_some_and(|v| (v - ramp(x)).abs().max_element() < 1e-6),
+            "{x}: {v:?}"
+        );
+    }
+    // The planes' own bound counts in full.
+    assert!(plane_row(ramp, 0.03).iter().all(Option::is_none));
+}
+
+#[test]
+fn a_bend_in_the_row_refuses_the_pixels_around_it() {
+    // A crease at x = 10: flat, then rising by 0.05 a pixel.
+    let crease = |x: usize| Vec3::splat(0.1 + 0.05 * x.saturating_sub(10) as f32);
+    let row = plane_row(crease, 0.0);
+    for (x, v) in row.iter().enumerate() {
+        assert_eq!(v.is_none(), x == 10, "{x}: {v:?}");
+    }
+}
+
+#[test]
+fn planes_and_means_in_one_window_trace() {
+    let mut g = Grid::new(20, 5, |_, _| 0.0);
+    assert!(matches!(
+        g.plan(true).pixel(8, 2),
+        Some(PixelReuse::Radiance(_))
+    ));
+    *g.cell(9, 2) = Cell::default();
+    g.cell(9, 2)
+        .add_hits(&plane_pixel(2, Vec3::ONE, 0.0), [0.0; 2], 1.0, true);
+    let plans = g.plan(true);
+    for x in 8..=10 {
+        assert!(
+            matches!(plans.pixel(x, 2), Some(PixelReuse::Hits(_))),
+            "{x}"
+        );
+    }
+}
+
 #[test]
 fn a_window_of_misses_is_the_background() {
     let mut g = Grid::new(20, 5, |_, _| 0.0);
@@ -212,7 +281,7 @@ fn a_source_pixel_lands_on_the_cells_its_span_overlaps_weighted_by_the_overlap()
     let land = |x: f32, p: &SourcePixel, row: &mut [Cell]| {
         let q = landing.a + landing.b * p.inv_depth[0];
         band::splat(row, x + q, x + 1.0 + q, |c, w| {
-            c.add_hits(p, [q, q], w, Some([p.radiance; 2]))
+            c.add_hits(p, [q, q], w, true)
         });
     };
     land(3.0, &a, &mut row);
