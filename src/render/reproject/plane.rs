@@ -34,47 +34,55 @@ pub struct PixelRadiance {
 
 /// Fits `samples` (at least one), taken `spp` to a pixel.
 pub fn fit(samples: &[ShadedSample], spp: usize) -> PixelRadiance {
-    let n = samples.len();
-    let mean = samples.iter().map(|s| s.radiance).sum::<Vec3>() / n as f32;
-    let flat = || {
-        let spread = samples
-            .iter()
-            .map(|s| (s.radiance - mean).abs().max_element())
-            .fold(0.0, f32::max);
-        checked(mean, spread, false)
-    };
-    if n < PLANE_SAMPLES {
-        return flat();
-    }
-    // The normal equations of [1, u, v] against the radiance, about the samples' centroid (so
-    // that the constant decouples and the 2x2 system for the gradient is well conditioned).
-    let (cu, cv) = (
-        samples.iter().map(|s| s.x).sum::<f32>() / n as f32,
-        samples.iter().map(|s| s.y).sum::<f32>() / n as f32,
-    );
-    let (mut suu, mut suv, mut svv) = (0.0f32, 0.0f32, 0.0f32);
-    let (mut sul, mut svl) = (Vec3::ZERO, Vec3::ZERO);
+    // One pass for the moments (about the pixel's centre, where the values are small), one for
+    // the residual: the fit runs for every pixel of the source view.
+    let n = samples.len() as f32;
+    let (mut su, mut sv, mut suu, mut suv, mut svv) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let (mut sl, mut sul, mut svl) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
     for s in samples {
-        let (u, v) = (s.x - cu, s.y - cv);
-        let l = s.radiance - mean;
+        let (u, v) = (s.x - 0.5, s.y - 0.5);
+        (su, sv) = (su + u, sv + v);
         (suu, suv, svv) = (suu + u * u, suv + u * v, svv + v * v);
-        sul += u * l;
-        svl += v * l;
+        sl += s.radiance;
+        sul += u * s.radiance;
+        svl += v * s.radiance;
     }
+    let mean = sl / n;
+    if samples.len() < PLANE_SAMPLES {
+        return flat(samples, mean);
+    }
+    // The normal equations of [1, u, v] about the samples' centroid, where the constant
+    // decouples and leaves a 2x2 system for the gradient.
+    let (cu, cv) = (su / n, sv / n);
+    let (suu, suv, svv) = (suu - su * cu, suv - su * cv, svv - sv * cv);
+    let (sul, svl) = (sul - cu * sl, svl - cv * sl);
     let det = suu * svv - suv * suv;
     // Samples on one line (or all at one place) leave the gradient across it unknown.
     if det.is_nan() || det <= 1e-6 * suu.max(svv).powi(2) {
-        return flat();
+        return flat(samples, mean);
     }
     let gx = (sul * svv - svl * suv) / det;
     let gy = (svl * suu - sul * suv) / det;
-    let at = |x: f32, y: f32| mean + gx * (x - cu) + gy * (y - cv);
+    // The plane's value at the pixel's centre (u = v = 0).
+    let centre = mean - gx * cu - gy * cv;
     let residual = samples
         .iter()
-        .map(|s| (s.radiance - at(s.x, s.y)).abs().max_element())
+        .map(|s| {
+            let plane = centre + gx * (s.x - 0.5) + gy * (s.y - 0.5);
+            (s.radiance - plane).abs().max_element()
+        })
         .fold(0.0, f32::max);
     let slope = (gx.abs() + gy.abs()).max_element();
-    checked(at(0.5, 0.5), residual + slope * centroid_bound(spp), true)
+    checked(centre, residual + slope * centroid_bound(spp), true)
+}
+
+/// The samples' mean, and how far the farthest lies from it.
+fn flat(samples: &[ShadedSample], mean: Vec3) -> PixelRadiance {
+    let spread = samples
+        .iter()
+        .map(|s| (s.radiance - mean).abs().max_element())
+        .fold(0.0, f32::max);
+    checked(mean, spread, false)
 }
 
 /// A value that is not finite (a NaN or infinite sample) gets an infinite bound: no rule takes
