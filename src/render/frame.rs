@@ -49,10 +49,10 @@ pub enum EyeReuse {
     /// mirror and glass rays are the view's own. Approximate where the rule is wrong.
     Reproject,
     /// As `reproject`, and a pixel whose reprojected samples all hit rough surfaces (no mirror
-    /// or glass ray) and agree within 0.02 with those of its row neighbours takes their mean
-    /// radiance, view-dependent highlights included: Adelson and Hodges' reuse of the colour.
-    /// Cheaper, and wrong by the change of the highlights between the eyes and by the uneven
-    /// spread of the reprojected samples over the pixel.
+    /// or glass ray), where the landed radiance is smooth enough along the row to interpolate
+    /// within 0.02, takes it, view-dependent highlights included: Adelson and Hodges' reuse of
+    /// the colour. Cheaper, and wrong by the change of the highlights between the eyes and by
+    /// what the samples did not see.
     ReprojectRadiance,
 }
 

@@ -466,7 +466,7 @@ fn plan_pixel(
         hits |= r.hits;
         overflow |= r.overflow;
     }
-    // The radiance's bound is its flatness: a shadow edge among the samples breaks it too, so
+    // The radiance's bound covers shadow edges among the samples as it does texture edges, so
     // the window's shadows need not agree (their bits are only reused on the hits below).
     if let Some(v) = windows[at(y, x)].radiance {
         return Plan::Radiance(v);

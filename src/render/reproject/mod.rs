@@ -90,7 +90,7 @@ pub struct HitReuse<'a> {
 impl Reprojection {
     /// Lands the source view's pixels from `source_camera` in `target`'s film (of the same
     /// size) and plans every target pixel, `band_rows` rows at a time. Misses land at infinity
-    /// when `misses` (no far plane); `radiance` lets flat rough pixels take the landed radiance
+    /// when `misses` (no far plane); `radiance` lets smooth rough pixels take the landed radiance
     /// (`"reproject-radiance"`).
     pub fn new(
         source: &SourcePixels,
