@@ -229,7 +229,7 @@ pub fn render_views<A: Intersect>(
         source.extend(tile.source);
     }
     let source = matches!(views[0].role, ViewRole::Source(_))
-        .then(|| SourcePixels::new(source, (w, h), TILE));
+        .then(|| SourcePixels::new(source, (w, h), TILE, spp as usize));
     Rendered {
         images,
         counts,

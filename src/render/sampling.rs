@@ -62,6 +62,13 @@ pub fn centroid_bound(spp: usize) -> f32 {
     }
 }
 
+/// How thick a strip along a pixel's side its `spp` samples may leave without a sample, in
+/// pixels: an n x n grid puts a sample in every 1/n of each row and column. The Hammersley sets
+/// are given the whole pixel (their y coordinates are stratified only for powers of two).
+pub fn unseen_strip(spp: usize) -> f32 {
+    2.0 * centroid_bound(spp)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

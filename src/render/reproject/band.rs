@@ -29,6 +29,9 @@ pub(super) struct Landing {
     pub misses: bool,
     /// `"reproject-radiance"`: the distance between the eyes, metres.
     pub baseline: Option<f32>,
+    /// How thick a strip along a pixel's side its samples may leave unseen, pixels
+    /// (`sampling::unseen_strip`).
+    pub unseen: f32,
 }
 
 /// What a target pixel does.
@@ -278,10 +281,13 @@ pub(super) struct RowWindow {
     pub lit: u32,
     pub shadowed: u32,
     pub radiance: Option<Vec3>,
+    /// The largest bend of the radiance above, at and below the pixel that its bound leaves
+    /// room for (`window_error`).
+    pub vertical_room: f32,
 }
 
 /// `RowWindow` for every pixel of `row`; `radiance` under `"reproject-radiance"`.
-pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
+pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWindow]) {
     let width = row.len();
     out.fill(RowWindow::default());
     // Rule 1: the pixel or a horizontal neighbour holds a sample.
@@ -290,7 +296,19 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
             .iter()
             .any(Cell::covered)
     };
+    // Radiance windows' errors centred on the pixel before, this one and the next.
+    let unseen = radiance.unwrap_or(f32::INFINITY);
+    let error = |k: usize| match radiance.is_some() && k < width {
+        true => window_error(row, k),
+        false => WindowError::NONE,
+    };
+    let (mut before, mut here) = (WindowError::NONE, error(0));
     for x in 0..width {
+        let after = error(x + 1);
+        let interpolation = before.total.min(here.total).min(after.total);
+        let slack = RADIANCE_BOUND - interpolation - unseen * here.bend;
+        let lend = slack >= 0.0;
+        (before, here) = (here, after);
         let window = &row[around(x, WINDOW_X, width)];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         let (mut lit, mut shadowed) = (0, 0);
@@ -310,42 +328,64 @@ pub(super) fn row_windows(row: &[Cell], radiance: bool, out: &mut [RowWindow]) {
             overflow: candidates.iter().any(|c| c.overflow),
             lit,
             shadowed,
-            radiance: (radiance && ok).then(|| row_radiance(row, x)).flatten(),
+            radiance: (ok && lend && row[x].weight > 0.0).then(|| row[x].radiance / row[x].weight),
+            vertical_room: slack / unseen,
         };
     }
 }
 
-/// `"reproject-radiance"`: pixel `x`'s landed radiance, where the pixel and its two row
-/// neighbours (three pixels) hold only hits that may stand for the target's and a bound on its error within
-/// `RADIANCE_BOUND` per channel. The pixel also needs its window to pass rules 1-3.
-/// - Where every pixel landed there has a plane (`plane.rs`), the landed value is the planes'
-///   centre values interpolated along the row (the landing's overlap weights), so the error is
-///   the planes' largest bound plus how far the three values bend away from a line (their
-///   second difference, about eight times the interpolation's error on a smooth curve). At
-///   the film's border the three are the pixel and the two beside it inwards.
-/// - Where none has (too few samples a pixel), the samples must agree: the window's bounds of
-///   their radiance (a flat patch, where which part of the pixel a sample covered does not
-///   matter).
-/// - Where both kinds landed, it traces.
-fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
-    // At the film's border, the three pixels nearest it.
-    let first = x.saturating_sub(1).min(row.len().saturating_sub(3));
+/// `"reproject-radiance"`: the bound on the error of the radiance landed in three pixels,
+/// and how far their values bend away from a line.
+#[derive(Clone, Copy)]
+struct WindowError {
+    total: f32,
+    bend: f32,
+}
+
+impl WindowError {
+    /// A window that cannot lend.
+    const NONE: WindowError = WindowError {
+        total: f32::INFINITY,
+        bend: 0.0,
+    };
+}
+
+/// `"reproject-radiance"`: the error of the radiance landed in the three pixels centred on `k`
+/// (at the film's border, the three nearest it); `WindowError::NONE` where one of them holds a
+/// hit whose radiance cannot stand for the target's, a miss, or no radiance.
+///
+/// A pixel takes its landed radiance where its own window passes rules 1-3 and the error is
+/// within `RADIANCE_BOUND`, the error being the sum of:
+/// - **The interpolation**: the least of the three windows that hold the pixel (centred on it
+///   or on a neighbour), so that a pixel beside a texture edge is judged on its side of the
+///   edge. Where every pixel landed in a window has a plane (`plane.rs`), the landed values are
+///   the planes' centre values interpolated along the row (the landing's overlap weights), so
+///   the error is the planes' largest bound plus how far the three values bend away from a line
+///   (their second difference, about eight times the interpolation's error on a smooth curve).
+///   Where none has (too few samples a pixel), the samples must agree: the window's bounds of
+///   their radiance (a flat patch). Where both kinds landed, there is no bound.
+/// - **What the samples did not see**: a step in the radiance beside the pixel (the bend of the
+///   window centred on it, and that of the pixels above and below it) may reach into it along a
+///   strip its samples left unseen (`Landing::unseen`): each bend times the strip's thickness.
+fn window_error(row: &[Cell], k: usize) -> WindowError {
+    let first = k.saturating_sub(1).min(row.len().saturating_sub(3));
     let window = &row[first..(first + 3).min(row.len())];
     if window
         .iter()
         .any(|c| c.weight <= 0.0 || c.indirect || c.miss)
     {
-        return None;
+        return WindowError::NONE;
     }
-    let error = if window.iter().all(|c| !c.means) {
-        let value = |c: &Cell| c.radiance / c.weight;
-        let bend = match window {
-            [a, b, c] => value(a) - 2.0 * value(b) + value(c),
-            [a, b] => value(a) - value(b),
-            _ => return None,
-        };
+    let value = |c: &Cell| c.radiance / c.weight;
+    let bend = match window {
+        [a, b, c] => value(a) - 2.0 * value(b) + value(c),
+        [a, b] => value(a) - value(b),
+        _ => return WindowError::NONE,
+    };
+    let bend = bend.abs().max_element();
+    let total = if window.iter().all(|c| !c.means) {
         let bound = window.iter().map(|c| c.plane_bound).fold(0.0, f32::max);
-        bound + bend.abs().max_element()
+        bound + bend
     } else if window.iter().all(|c| !c.planes) {
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         for c in window {
@@ -354,10 +394,34 @@ fn row_radiance(row: &[Cell], x: usize) -> Option<Vec3> {
         }
         (hi - lo).max_element()
     } else {
-        return None;
+        f32::INFINITY
     };
-    let c = &row[x];
-    (error <= RADIANCE_BOUND).then(|| c.radiance / c.weight)
+    // NaN never lends.
+    match total.is_nan() || bend.is_nan() {
+        true => WindowError::NONE,
+        false => WindowError { total, bend },
+    }
+}
+
+/// How far the radiance `value` of target pixel (x, y) and that landed above and below it
+/// bend away from a line, per channel at most (0 where a row beside it holds no radiance).
+fn vertical_bend(
+    cells: &[Cell],
+    (x, y): (usize, usize),
+    height: usize,
+    at: &impl Fn(usize, usize) -> usize,
+    value: Vec3,
+) -> f32 {
+    if y == 0 || y + 1 >= height {
+        return 0.0;
+    }
+    let (above, below) = (&cells[at(y - 1, x)], &cells[at(y + 1, x)]);
+    let lends = |c: &Cell| c.weight > 0.0 && !c.indirect && !c.miss;
+    if !(lends(above) && lends(below)) {
+        return 0.0;
+    }
+    let bend = above.radiance / above.weight - 2.0 * value + below.radiance / below.weight;
+    bend.abs().max_element()
 }
 
 /// The rows of cells and row windows a band works on: three, the rules' window, reused row
@@ -400,6 +464,7 @@ pub(super) fn plan_band(
             let row = &mut ring.cells[k..k + width];
             row.fill(Cell::default());
             land_row(source, landed.end, landing, row);
+            let radiance = radiance.then_some(landing.unseen);
             row_windows(row, radiance, &mut ring.windows[k..k + width]);
             landed.end += 1;
         }
@@ -468,7 +533,9 @@ fn plan_pixel(
     }
     // The radiance's bound covers shadow edges among the samples as it does texture edges, so
     // the window's shadows need not agree (their bits are only reused on the hits below).
-    if let Some(v) = windows[at(y, x)].radiance {
+    if let Some(v) = windows[at(y, x)].radiance
+        && vertical_bend(cells, (x, y), height, at, v) <= windows[at(y, x)].vertical_room
+    {
         return Plan::Radiance(v);
     }
     // Rule 1 holds, so the candidate pixels hold samples: with no triangle among them, they

@@ -35,6 +35,7 @@
 
 use super::camera::EyeCamera;
 use super::integrator::KnownHit;
+use super::sampling::unseen_strip;
 use crate::accel::{Hit, Ray, triangle};
 use crate::scene::pose::Geometry;
 use band::{BandPlan, Landing, Plan, Ring, plan_band};
@@ -107,6 +108,7 @@ impl Reprojection {
             b,
             misses,
             baseline: radiance.then(|| target.position().distance(source_camera.position())),
+            unseen: unseen_strip(source.spp()),
         };
         // Rule 3 from the nearest depth the source saw.
         let nearest = source.nearest_depth().max(source_camera.znear());

@@ -268,13 +268,16 @@ pub struct SourcePixels {
     tile: usize,
     tiles: Vec<FinishedTile>,
     nearest_inv_depth: f32,
+    spp: usize,
 }
 
 impl SourcePixels {
+    /// The finished `tile` x `tile` tiles of a film of `width` x `height` traced at `spp`.
     pub fn new(
         tiles: Vec<FinishedTile>,
         (width, height): (usize, usize),
         tile: usize,
+        spp: usize,
     ) -> SourcePixels {
         assert_eq!(tiles.len(), width.div_ceil(tile) * height.div_ceil(tile));
         let nearest_inv_depth = tiles
@@ -286,7 +289,13 @@ impl SourcePixels {
             tile,
             tiles,
             nearest_inv_depth,
+            spp,
         }
+    }
+
+    /// Samples per pixel.
+    pub fn spp(&self) -> usize {
+        self.spp
     }
 
     pub fn size(&self) -> (usize, usize) {
