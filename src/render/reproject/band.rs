@@ -7,6 +7,7 @@ use super::source::{SourcePixel, SourcePixels};
 use super::{LOBE_FRACTION, MAX_PARALLAX_SPREAD, RADIANCE_BOUND};
 use crate::accel::prefetch;
 use glam::Vec3;
+use std::cell::RefCell;
 use std::ops::Range;
 
 /// Half-widths of rules 1-2's window (5x3) and of rule 4's candidate window (3x3).
@@ -289,49 +290,68 @@ pub(super) struct RowWindow {
 /// `RowWindow` for every pixel of `row`; `radiance` under `"reproject-radiance"`.
 pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWindow]) {
     let width = row.len();
-    out.fill(RowWindow::default());
-    // Rule 1: the pixel or a horizontal neighbour holds a sample.
-    let covered = |x: usize| {
-        row[x.saturating_sub(1)..(x + 2).min(width)]
-            .iter()
-            .any(Cell::covered)
-    };
-    // Radiance windows' errors centred on the pixel before, this one and the next.
-    let unseen = radiance.unwrap_or(f32::INFINITY);
-    let error = |k: usize| match radiance.is_some() && k < width {
-        true => window_error(row, k),
-        false => WindowError::NONE,
-    };
-    let (mut before, mut here) = (WindowError::NONE, error(0));
-    for x in 0..width {
-        let after = error(x + 1);
-        let interpolation = before.total.min(here.total).min(after.total);
-        let slack = RADIANCE_BOUND - interpolation - unseen * here.bend;
-        let lend = slack >= 0.0;
-        (before, here) = (here, after);
-        let window = &row[around(x, WINDOW_X, width)];
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        let (mut lit, mut shadowed) = (0, 0);
-        for c in window {
-            lo = lo.min(c.parallax[0]);
-            hi = hi.max(c.parallax[1]);
-            lit |= c.lit;
-            shadowed |= c.shadowed;
-        }
-        let spread = hi - lo;
-        let ok = around(x, WINDOW_X, width).all(covered)
-            && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
-        let candidates = &row[around(x, CANDIDATE_X, width)];
-        out[x] = RowWindow {
-            ok,
-            hits: candidates.iter().any(|c| c.distinct > 0),
-            overflow: candidates.iter().any(|c| c.overflow),
-            lit,
-            shadowed,
-            radiance: (ok && lend && row[x].weight > 0.0).then(|| row[x].radiance / row[x].weight),
-            vertical_room: slack / unseen,
+    SUMMARIES.with_borrow_mut(|summaries| {
+        // What every window reads of a cell, once per cell.
+        summaries.clear();
+        summaries.extend(row.iter().enumerate().map(|(x, c)| {
+            CellSummary {
+                // Rule 1: the pixel or a horizontal neighbour holds a sample.
+                near: row[x.saturating_sub(1)..(x + 2).min(width)]
+                    .iter()
+                    .any(Cell::covered),
+                value: (c.weight > 0.0 && !c.indirect && !c.miss).then(|| c.radiance / c.weight),
+            }
+        }));
+        // Radiance windows' errors centred on the pixel before, this one and the next.
+        let unseen = radiance.unwrap_or(f32::INFINITY);
+        let error = |k: usize| match radiance.is_some() && k < width {
+            true => window_error(row, summaries, k),
+            false => WindowError::NONE,
         };
-    }
+        let (mut before, mut here) = (WindowError::NONE, error(0));
+        for x in 0..width {
+            let after = error(x + 1);
+            let interpolation = before.total.min(here.total).min(after.total);
+            let slack = RADIANCE_BOUND - interpolation - unseen * here.bend;
+            let lend = slack >= 0.0;
+            (before, here) = (here, after);
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            let (mut lit, mut shadowed) = (0, 0);
+            for c in &row[around(x, WINDOW_X, width)] {
+                lo = lo.min(c.parallax[0]);
+                hi = hi.max(c.parallax[1]);
+                lit |= c.lit;
+                shadowed |= c.shadowed;
+            }
+            let spread = hi - lo;
+            let ok = summaries[around(x, WINDOW_X, width)].iter().all(|s| s.near)
+                && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
+            let candidates = &row[around(x, CANDIDATE_X, width)];
+            out[x] = RowWindow {
+                ok,
+                hits: candidates.iter().any(|c| c.distinct > 0),
+                overflow: candidates.iter().any(|c| c.overflow),
+                lit,
+                shadowed,
+                radiance: summaries[x].value.filter(|_| ok && lend),
+                vertical_room: slack / unseen,
+            };
+        }
+    });
+}
+
+/// What the row windows read of one cell.
+#[derive(Clone, Copy)]
+struct CellSummary {
+    /// Something landed in it or in a row neighbour (rule 1).
+    near: bool,
+    /// Its landed radiance, where every hit that landed may lend it and no miss did.
+    value: Option<Vec3>,
+}
+
+thread_local! {
+    /// A row's cell summaries, reused from row to row.
+    static SUMMARIES: RefCell<Vec<CellSummary>> = const { RefCell::new(Vec::new()) };
 }
 
 /// `"reproject-radiance"`: the bound on the error of the radiance landed in three pixels,
@@ -367,21 +387,22 @@ impl WindowError {
 /// - **What the samples did not see**: a step in the radiance beside the pixel (the bend of the
 ///   window centred on it, and that of the pixels above and below it) may reach into it along a
 ///   strip its samples left unseen (`Landing::unseen`): each bend times the strip's thickness.
-fn window_error(row: &[Cell], k: usize) -> WindowError {
+fn window_error(row: &[Cell], summaries: &[CellSummary], k: usize) -> WindowError {
     let first = k.saturating_sub(1).min(row.len().saturating_sub(3));
-    let window = &row[first..(first + 3).min(row.len())];
-    if window
-        .iter()
-        .any(|c| c.weight <= 0.0 || c.indirect || c.miss)
-    {
-        return WindowError::NONE;
-    }
-    let value = |c: &Cell| c.radiance / c.weight;
-    let bend = match window {
-        [a, b, c] => value(a) - 2.0 * value(b) + value(c),
-        [a, b] => value(a) - value(b),
+    let cells = first..(first + 3).min(row.len());
+    let bend = match summaries[cells.clone()] {
+        [
+            CellSummary { value: Some(a), .. },
+            CellSummary { value: Some(b), .. },
+            CellSummary { value: Some(c), .. },
+        ] => a - 2.0 * b + c,
+        [
+            CellSummary { value: Some(a), .. },
+            CellSummary { value: Some(b), .. },
+        ] => a - b,
         _ => return WindowError::NONE,
     };
+    let window = &row[cells];
     let bend = bend.abs().max_element();
     let total = if window.iter().all(|c| !c.means) {
         let bound = window.iter().map(|c| c.plane_bound).fold(0.0, f32::max);
