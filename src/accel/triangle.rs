@@ -4,8 +4,8 @@
 //! vertex hits at least one of the triangles meeting there, and never slips between them. Edge
 //! functions that come out exactly zero are recomputed in f64, as the paper prescribes.
 
-use super::Ray;
 use super::lanes::F4;
+use super::{Hit, Ray};
 use glam::{Mat3A, Vec3, Vec3A};
 
 /// Per-ray constants of the shear transform, stored as a 3x3 matrix so that a vertex's sheared
@@ -247,6 +247,34 @@ pub(super) fn intersect4(
     (hit, out)
 }
 
+/// For each ray of `rays` whose bit is set in `active`, the nearest hit within its `t_max`
+/// among `candidates` (triangle index and vertices), visited in order: bit for bit what the
+/// scalar loop finds that tests each candidate in turn with `intersect` up to the nearest hit
+/// so far. Four rays share each triangle test.
+pub fn nearest4(
+    rays: [Ray; 4],
+    active: u32,
+    t_max: [f32; 4],
+    candidates: impl Iterator<Item = (u32, [Vec3; 3])>,
+) -> [Option<Hit>; 4] {
+    let pre = RayPre4::new(rays);
+    let mut limit = t_max;
+    let mut best = [None; 4];
+    for (prim, tri) in candidates {
+        let (hits, [t, b1, b2]) = intersect4(&pre, &tri, F4::new(limit), active);
+        for i in (0..4).filter(|i| hits >> i & 1 == 1) {
+            limit[i] = t[i];
+            best[i] = Some(Hit {
+                t: t[i],
+                prim,
+                b1: b1[i],
+                b2: b2[i],
+            });
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -373,6 +401,45 @@ mod tests {
             }
         }
         assert!(cases > 1000, "too few hits to mean anything: {cases}");
+    }
+
+    #[test]
+    fn the_nearest_of_candidates_for_four_rays_is_the_scalar_loops() {
+        let mut rng = crate::accel::test_rng::Lcg(11);
+        let mut found = 0;
+        for k in 0..400 {
+            // A stack of overlapping triangles ahead of the rays: nearer ones come later in
+            // some cases and earlier in others.
+            let tris: Vec<[Vec3; 3]> = (0..12)
+                .map(|_| {
+                    let c = rng.v(2.0) - Vec3::new(1.0, 1.0, 1.0 + 4.0 * rng.next());
+                    [c, c + rng.v(3.0) - 1.5, c + rng.v(3.0) - 1.5]
+                })
+                .collect();
+            let rays: [Ray; 4] =
+                std::array::from_fn(|_| Ray::new(rng.v(0.5), Vec3::NEG_Z + rng.v(0.4) - 0.2));
+            let t_max: [f32; 4] = std::array::from_fn(|i| if i == 3 { 2.5 } else { f32::INFINITY });
+            let active = if k % 3 == 0 { 0b0111 } else { 0b1111 };
+            let candidates = tris.iter().enumerate().map(|(p, t)| (p as u32, *t));
+            let four = nearest4(rays, active, t_max, candidates);
+            for i in 0..4 {
+                let mut scalar = None;
+                if active >> i & 1 == 1 {
+                    let pre = RayPre::new(&rays[i]);
+                    let mut limit = t_max[i];
+                    for (p, tri) in tris.iter().enumerate() {
+                        if let Some((t, b1, b2)) = intersect(&pre, tri, limit) {
+                            limit = t;
+                            scalar = Some((p as u32, [t, b1, b2].map(f32::to_bits)));
+                        }
+                    }
+                }
+                let lane = four[i].map(|h| (h.prim, [h.t, h.b1, h.b2].map(f32::to_bits)));
+                assert_eq!(lane, scalar, "case {k} ray {i}");
+                found += scalar.is_some() as usize;
+            }
+        }
+        assert!(found > 500, "too few hits to mean anything: {found}");
     }
 
     #[test]

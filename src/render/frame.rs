@@ -272,53 +272,66 @@ impl<A: Intersect> Packets<'_, '_, A> {
         let role = self.views[0].role;
         let geometry = self.integrator.scene.geometry;
         let mut sums = [Vec3::ZERO; LANES];
-        let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-        let mut limits = [0.0; LANES];
         let mut radiance = [Vec3::ZERO; LANES];
         let mut records = [PrimaryRecord::NONE; LANES];
-        let mut known = [None; LANES];
-        let mut film_offset = [Vec2::ZERO; LANES];
         let n = lanes.len();
-        for s in 0..spp {
+        // Samples go four at a time: a reused pixel verifies the four samples' rays against
+        // its candidates together, four rays to each triangle test.
+        for first in (0..spp).step_by(SAMPLE_GROUP) {
+            let group = ((spp - first) as usize).min(SAMPLE_GROUP);
+            let mut rays = [[Ray::new(Vec3::ZERO, Vec3::Z); LANES]; SAMPLE_GROUP];
+            let mut limits = [[0.0; LANES]; SAMPLE_GROUP];
+            let mut known = [[None; LANES]; SAMPLE_GROUP];
+            let mut film_offset = [[Vec2::ZERO; LANES]; SAMPLE_GROUP];
             for (i, lane) in lanes.iter().enumerate() {
                 let view = &self.views[lane.view];
                 let film = &view.film;
                 let seed = [(lane.y * w + lane.x) as u32, film.frame, film.eye_seed];
-                let o = pixel_sample(s, spp, seed);
-                let f = Vec2::new(lane.x as f32 + o.x, lane.y as f32 + o.y);
-                let (ray, limit) = view.camera.ray(f.x, f.y);
-                let hit = match &lane.reuse {
-                    Some(PixelReuse::Hits(h)) => h.verify(&ray, limit, geometry),
-                    _ => None,
+                let mut lane_rays = [Ray::new(Vec3::ZERO, Vec3::Z); SAMPLE_GROUP];
+                let mut lane_limits = [0.0; SAMPLE_GROUP];
+                for k in 0..group {
+                    let o = pixel_sample(first + k as u32, spp, seed);
+                    let f = Vec2::new(lane.x as f32 + o.x, lane.y as f32 + o.y);
+                    let (ray, limit) = view.camera.ray(f.x, f.y);
+                    (rays[k][i], limits[k][i], film_offset[k][i]) = (ray, limit, o);
+                    (lane_rays[k], lane_limits[k]) = (ray, limit);
+                }
+                if let Some(PixelReuse::Hits(h)) = &lane.reuse {
+                    let active = (1 << group) - 1;
+                    let verified = h.verify4(lane_rays, active, lane_limits, geometry);
+                    for k in 0..group {
+                        known[k][i] = verified[k];
+                    }
+                }
+            }
+            for k in 0..group {
+                let primary = match role {
+                    ViewRole::Plain => Primary::Trace,
+                    ViewRole::Source(_) => Primary::Record(&mut records[..n]),
+                    ViewRole::Target(_) => Primary::Known(&known[k][..n]),
                 };
-                (rays[i], limits[i], known[i], film_offset[i]) = (ray, limit, hit, o);
-            }
-            let primary = match role {
-                ViewRole::Plain => Primary::Trace,
-                ViewRole::Source(_) => Primary::Record(&mut records[..n]),
-                ViewRole::Target(_) => Primary::Known(&known[..n]),
-            };
-            self.integrator.radiance_packet(
-                &rays[..n],
-                &limits[..n],
-                primary,
-                &self.counts,
-                &mut radiance[..n],
-            );
-            for (sum, r) in sums.iter_mut().zip(&radiance[..n]) {
-                *sum += *r;
-            }
-            if let Some(source) = &mut out.source {
-                for (i, lane) in lanes.iter().enumerate() {
-                    let p = records[i].point;
-                    let sample = Sample {
-                        film_x: film_offset[i].x,
-                        film_y: film_offset[i].y,
-                        depth: self.views[0].camera.depth(p),
-                        distance: p.distance(self.eye),
-                    };
-                    let at = (lane.y - y0) * tw + (lane.x - x0);
-                    source.add(at, sample, &records[i], radiance[i]);
+                self.integrator.radiance_packet(
+                    &rays[k][..n],
+                    &limits[k][..n],
+                    primary,
+                    &self.counts,
+                    &mut radiance[..n],
+                );
+                for (sum, r) in sums.iter_mut().zip(&radiance[..n]) {
+                    *sum += *r;
+                }
+                if let Some(source) = &mut out.source {
+                    for (i, lane) in lanes.iter().enumerate() {
+                        let p = records[i].point;
+                        let sample = Sample {
+                            film_x: film_offset[k][i].x,
+                            film_y: film_offset[k][i].y,
+                            depth: self.views[0].camera.depth(p),
+                            distance: p.distance(self.eye),
+                        };
+                        let at = (lane.y - y0) * tw + (lane.x - x0);
+                        source.add(at, sample, &records[i], radiance[i]);
+                    }
                 }
             }
         }
@@ -327,6 +340,9 @@ impl<A: Intersect> Packets<'_, '_, A> {
         }
     }
 }
+
+/// Samples of a pixel traced together (`Packets::trace`): the lanes of a triangle test.
+const SAMPLE_GROUP: usize = 4;
 
 /// One tile's pixels per view, its rays and (for a source view) what other views reuse.
 struct TileResult {

@@ -36,7 +36,7 @@
 use super::camera::EyeCamera;
 use super::integrator::KnownHit;
 use super::sampling::unseen_strip;
-use crate::accel::{Hit, Ray, triangle};
+use crate::accel::{Ray, triangle};
 use crate::scene::pose::Geometry;
 use band::{BandPlan, Landing, Plan, Ring, plan_band};
 use glam::Vec3;
@@ -170,23 +170,23 @@ fn edge_strips(nearest_parallax: f32, width: usize) -> Range<usize> {
 }
 
 impl HitReuse<'_> {
-    /// Rule 4: the nearest candidate the ray hits within `t_max`, with the window's shadow
-    /// answers; `None` when it hits none.
-    pub fn verify(&self, ray: &Ray, t_max: f32, geometry: &Geometry) -> Option<KnownHit> {
-        let pre = triangle::RayPre::new(ray);
-        let mut best: Option<Hit> = None;
-        let mut t_best = t_max;
-        for &prim in self.candidates {
-            let tri = geometry.triangle(prim as usize);
-            if let Some((t, b1, b2)) = triangle::intersect(&pre, &tri, t_best) {
-                t_best = t;
-                best = Some(Hit { t, prim, b1, b2 });
-            }
-        }
-        best.map(|hit| KnownHit {
-            hit,
-            lit: self.lit,
-            shadowed: self.shadowed,
+    /// Rule 4 for up to four of the pixel's samples (the rays whose bit is set in `active`):
+    /// the nearest candidate each ray hits within its `t_max`, with the window's shadow answers;
+    /// `None` where it hits none. Four rays share each triangle test.
+    pub fn verify4(
+        &self,
+        rays: [Ray; 4],
+        active: u32,
+        t_max: [f32; 4],
+        geometry: &Geometry,
+    ) -> [Option<KnownHit>; 4] {
+        let candidates = (self.candidates.iter()).map(|&p| (p, geometry.triangle(p as usize)));
+        triangle::nearest4(rays, active, t_max, candidates).map(|hit| {
+            hit.map(|hit| KnownHit {
+                hit,
+                lit: self.lit,
+                shadowed: self.shadowed,
+            })
         })
     }
 }

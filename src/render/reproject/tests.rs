@@ -3,6 +3,7 @@
 use super::band::{Cell, Landing, RowWindow, plan_row, row_windows};
 use super::source::SourcePixel;
 use super::*;
+use crate::accel::Hit;
 
 #[test]
 fn the_edge_strip_sits_on_the_side_near_points_move_to() {
