@@ -114,6 +114,11 @@ impl Cell {
         self.parallax[0] <= self.parallax[1]
     }
 
+    /// The landed radiance, where every hit that landed may lend it and no miss landed.
+    fn lent_radiance(&self) -> Option<Vec3> {
+        (self.weight > 0.0 && !self.indirect && !self.miss).then(|| self.radiance / self.weight)
+    }
+
     fn land(&mut self, parallax: [f32; 2]) {
         self.parallax = [
             self.parallax[0].min(parallax[0]),
@@ -299,7 +304,7 @@ pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWin
                 near: row[x.saturating_sub(1)..(x + 2).min(width)]
                     .iter()
                     .any(Cell::covered),
-                value: (c.weight > 0.0 && !c.indirect && !c.miss).then(|| c.radiance / c.weight),
+                value: c.lent_radiance(),
             }
         }));
         // Radiance windows' errors centred on the pixel before, this one and the next.
@@ -345,7 +350,7 @@ pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWin
 struct CellSummary {
     /// Something landed in it or in a row neighbour (rule 1).
     near: bool,
-    /// Its landed radiance, where every hit that landed may lend it and no miss did.
+    /// `Cell::lent_radiance`.
     value: Option<Vec3>,
 }
 
@@ -436,13 +441,13 @@ fn vertical_bend(
     if y == 0 || y + 1 >= height {
         return 0.0;
     }
-    let (above, below) = (&cells[at(y - 1, x)], &cells[at(y + 1, x)]);
-    let lends = |c: &Cell| c.weight > 0.0 && !c.indirect && !c.miss;
-    if !(lends(above) && lends(below)) {
-        return 0.0;
+    match (
+        cells[at(y - 1, x)].lent_radiance(),
+        cells[at(y + 1, x)].lent_radiance(),
+    ) {
+        (Some(above), Some(below)) => (above - 2.0 * value + below).abs().max_element(),
+        _ => 0.0,
     }
-    let bend = above.radiance / above.weight - 2.0 * value + below.radiance / below.weight;
-    bend.abs().max_element()
 }
 
 /// The rows of cells and row windows a band works on: three, the rules' window, reused row
