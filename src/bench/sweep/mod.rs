@@ -412,6 +412,51 @@ mod tests {
     }
 
     #[test]
+    fn a_reuse_mode_is_timed_against_the_left_eye_of_its_off_sibling() {
+        let combination =
+            |reuse: &str, spp: &str, (left_s, right_s): (f64, f64)| CombinationResult {
+                values: vec![
+                    ("render.eye_reuse".into(), reuse.into()),
+                    ("render.spp".into(), spp.into()),
+                ],
+                frames: vec![FrameRow {
+                    frame: 0,
+                    update_s: 0.0,
+                    trace_s: left_s + right_s,
+                    frame_s: left_s + right_s,
+                    frame_s_min: 0.0,
+                    frame_s_max: 0.0,
+                    rays: 1,
+                    left_s,
+                    right_s,
+                    right_rays_per_pixel: 0.0,
+                    eyes: Vec::new(),
+                }],
+                peak_bytes: None,
+            };
+        let results = [
+            combination("off", "4", (2.0, 2.0)),
+            combination("reproject", "4", (2.5, 0.5)),
+            combination("off", "16", (8.0, 8.0)),
+            combination("reproject", "16", (9.0, 1.0)),
+        ];
+        let off = results::off_sibling(&results, &results[3]).unwrap();
+        assert_eq!(off.values[1].1, "16");
+        assert_eq!(results[3].right_over_off_left(off), 1.0 / 8.0);
+        assert_eq!(results[3].right_over_left(), 1.0 / 9.0);
+        assert!(std::ptr::eq(
+            results::off_sibling(&results, &results[0]).unwrap(),
+            &results[0]
+        ));
+        // Without `eye_reuse` among the swept keys there is no sibling to name.
+        let unswept = CombinationResult {
+            values: vec![("render.spp".into(), "4".into())],
+            ..results[1].clone()
+        };
+        assert!(results::off_sibling(std::slice::from_ref(&unswept), &unswept).is_none());
+    }
+
+    #[test]
     fn the_reference_replaces_speed_keys_and_keeps_the_others() {
         let c = vec![
             ("render.shading".to_string(), "phong".to_string()),

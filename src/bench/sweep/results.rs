@@ -115,6 +115,17 @@ impl CombinationResult {
         )
     }
 
+    /// Right-eye tracing time over the left eye's of `off`, the same combination traced with
+    /// `eye_reuse = "off"` (`off_sibling`), frame by frame, the mean over frames: the left eye
+    /// of a reuse mode also folds its samples for the right eye, so `right_over_left` flatters.
+    pub fn right_over_off_left(&self, off: &CombinationResult) -> f64 {
+        mean(
+            (self.frames.iter().zip(&off.frames))
+                .filter(|(_, o)| o.left_s > 0.0)
+                .map(|(f, o)| f.right_s / o.left_s),
+        )
+    }
+
     /// Rays traced for the right eye per pixel, the mean over frames.
     pub fn right_rays_per_pixel(&self) -> f64 {
         mean(self.frames.iter().map(|f| f.right_rays_per_pixel))
@@ -131,6 +142,31 @@ impl CombinationResult {
     }
 }
 
+/// The key of the stereo reuse mode.
+const EYE_REUSE_KEY: &str = "render.eye_reuse";
+
+/// The combination of `results` with the values of `r` but `eye_reuse = "off"`, where the sweep
+/// swept `eye_reuse` and holds it.
+pub fn off_sibling<'a>(
+    results: &'a [CombinationResult],
+    r: &CombinationResult,
+) -> Option<&'a CombinationResult> {
+    if !r.values.iter().any(|(k, _)| k == EYE_REUSE_KEY) {
+        return None;
+    }
+    results.iter().find(|q| {
+        q.values.len() == r.values.len()
+            && (q.values.iter().zip(&r.values)).all(|((qk, qv), (k, v))| {
+                qk == k
+                    && if k == EYE_REUSE_KEY {
+                        qv == "off"
+                    } else {
+                        qv == v
+                    }
+            })
+    })
+}
+
 fn mean(values: impl Iterator<Item = f64>) -> f64 {
     let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
     if n == 0 { f64::NAN } else { sum / n as f64 }
@@ -143,7 +179,7 @@ impl fmt::Display for Table<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8} {:>6} {:>8} {:>11}",
+            "{:<40} {:>10} {:>9} {:>9} {:>12} {:>8} {:>6} {:>6} {:>8} {:>11}",
             "combination",
             "s/frame",
             "Mrays/s",
@@ -151,13 +187,14 @@ impl fmt::Display for Table<'_> {
             "mean |err|",
             "PSNR",
             "R/L",
+            "R/offL",
             "R ray/px",
             "R vs full"
         )?;
         for r in self.0 {
             write!(
                 f,
-                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2} {:>6.3} {:>8.2} {:>8.2} dB",
+                "\n{:<40} {:>10.4} {:>9.2} {:>9} {:>12.6} {:>8.2} {:>6.3} {:>6} {:>8.2} {:>8.2} dB",
                 r.label(),
                 r.frame_seconds(),
                 r.mrays_per_second(),
@@ -166,6 +203,10 @@ impl fmt::Display for Table<'_> {
                 r.mean_abs_error(),
                 r.psnr(),
                 r.right_over_left(),
+                off_sibling(self.0, r).map_or("-".into(), |off| format!(
+                    "{:.3}",
+                    r.right_over_off_left(off)
+                )),
                 r.right_rays_per_pixel(),
                 r.right_psnr_vs_full()
             )?;
@@ -197,7 +238,7 @@ pub const RESULTS_COLUMNS: [&str; 18] = [
 ];
 
 /// Columns of `summary.csv` after the swept keys.
-pub const SUMMARY_COLUMNS: [&str; 12] = [
+pub const SUMMARY_COLUMNS: [&str; 13] = [
     "label",
     "frame_s",
     "update_s",
@@ -208,6 +249,7 @@ pub const SUMMARY_COLUMNS: [&str; 12] = [
     "percent_over",
     "pareto",
     "right_over_left",
+    "right_over_off_left",
     "right_rays_per_pixel",
     "right_psnr_vs_full",
 ];
@@ -300,6 +342,9 @@ pub(super) fn write_files(
                     format!("{:.4}", r.percent_over()),
                     front.contains(&i).to_string(),
                     format!("{:.4}", r.right_over_left()),
+                    off_sibling(results, r)
+                        .map(|off| format!("{:.4}", r.right_over_off_left(off)))
+                        .unwrap_or_default(),
                     format!("{:.3}", r.right_rays_per_pixel()),
                     format!("{:.2}", r.right_psnr_vs_full()),
                 ],
