@@ -32,6 +32,11 @@
 //! (shadow edges are traced). A reused hit is exact whenever the nearest surface along the ray
 //! was seen by the source near there; the error left is where it was not (a surface seen by
 //! the target alone, thinner than the rules can see) and shadow detail finer than the samples.
+//!
+//! Under `"reproject-radiance"` a target pixel may also take the radiance that landed on it,
+//! with no ray at all: each record's radiance is a plane fitted to its samples (`plane.rs`),
+//! and the pixel takes the landed values where a bound on their error is within
+//! `RADIANCE_BOUND` (`band.rs`, `window_error`).
 
 use super::camera::EyeCamera;
 use super::integrator::KnownHit;
