@@ -231,7 +231,14 @@ impl SourceTile {
                 let first = i * self.spp;
                 let hits = usize::from(p.hits).min(self.spp);
                 let fitted = plane::fit(&self.shaded[first..first + hits], self.spp);
-                (p.radiance, p.radiance_bound) = (fitted.value, fitted.bound);
+                // The record is read as a plane wherever it has the samples for one
+                // (`SourcePixel::plane`); where they all lie on one line the gradient across it
+                // is unknown, and the pixel lends no radiance.
+                let bound = match fitted.plane == p.plane() {
+                    true => fitted.bound,
+                    false => f32::INFINITY,
+                };
+                (p.radiance, p.radiance_bound) = (fitted.value, bound);
             }
             let mut nearest = p.inv_depth[0];
             if p.misses > 0 && test.misses_land {
