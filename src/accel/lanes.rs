@@ -1,6 +1,9 @@
 //! Four f32 lanes for the packet walk: SSE2 on x86_64 (part of the architecture's baseline, so
 //! no runtime detection is needed), plain arrays elsewhere. Every operation is the lane-wise IEEE
 //! operation, so a lane computes bit for bit what the scalar walk computes for its ray.
+//!
+//! `Lanes` is what the packet walk and its triangle test ask of a group of lanes, so that the same
+//! code runs on these four lanes and on the eight of `lanes8.rs`.
 
 #[cfg(target_arch = "x86_64")]
 mod imp {
@@ -255,14 +258,138 @@ mod imp {
 
 pub use imp::{F4, M4};
 
-impl F4 {
-    /// The columns of four rows: lane `i` of column `c` is `rows[i][c]` (a 4x4 transpose, which
-    /// the compiler turns into shuffles).
-    #[inline(always)]
-    pub fn columns(rows: [[f32; 4]; 4]) -> [F4; 4] {
-        std::array::from_fn(|c| F4::new([rows[0][c], rows[1][c], rows[2][c], rows[3][c]]))
-    }
+/// `N` f32 lanes as the packet walk (`packet.rs`) and its triangle test (`triangle.rs`) use them:
+/// each operation is the lane-wise IEEE operation, as `F4`'s are.
+pub trait Lanes<const N: usize>: Copy {
+    type Mask: LaneMask;
+    fn splat(v: f32) -> Self;
+    fn new(a: [f32; N]) -> Self;
+    fn to_array(self) -> [f32; N];
+    fn add(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn div(self, o: Self) -> Self;
+    fn abs(self) -> Self;
+    fn flip_sign_of(self, o: Self) -> Self;
+    fn max_num(self, o: Self) -> Self;
+    fn min_num(self, o: Self) -> Self;
+    fn lt(self, o: Self) -> Self::Mask;
+    fn le(self, o: Self) -> Self::Mask;
+    fn gt(self, o: Self) -> Self::Mask;
+    fn ge(self, o: Self) -> Self::Mask;
+    fn eq(self, o: Self) -> Self::Mask;
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+}
 
+/// A comparison's result, lane by lane.
+pub trait LaneMask: Copy {
+    fn all(on: bool) -> Self;
+    fn or(self, o: Self) -> Self;
+    fn and_not(self, o: Self) -> Self;
+    /// Bit `i` set when lane `i` is.
+    fn bits(self) -> u32;
+}
+
+/// `Lanes` for a lane type with inherent methods of the same names (`F4`, `F8`).
+macro_rules! impl_lanes {
+    ($f:ident, $m:ident, $n:literal) => {
+        impl $crate::accel::lanes::Lanes<$n> for $f {
+            type Mask = $m;
+            #[inline(always)]
+            fn splat(v: f32) -> Self {
+                $f::splat(v)
+            }
+            #[inline(always)]
+            fn new(a: [f32; $n]) -> Self {
+                $f::new(a)
+            }
+            #[inline(always)]
+            fn to_array(self) -> [f32; $n] {
+                $f::to_array(self)
+            }
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                $f::add(self, o)
+            }
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                $f::sub(self, o)
+            }
+            #[inline(always)]
+            fn mul(self, o: Self) -> Self {
+                $f::mul(self, o)
+            }
+            #[inline(always)]
+            fn div(self, o: Self) -> Self {
+                $f::div(self, o)
+            }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                $f::abs(self)
+            }
+            #[inline(always)]
+            fn flip_sign_of(self, o: Self) -> Self {
+                $f::flip_sign_of(self, o)
+            }
+            #[inline(always)]
+            fn max_num(self, o: Self) -> Self {
+                $f::max_num(self, o)
+            }
+            #[inline(always)]
+            fn min_num(self, o: Self) -> Self {
+                $f::min_num(self, o)
+            }
+            #[inline(always)]
+            fn lt(self, o: Self) -> $m {
+                $f::lt(self, o)
+            }
+            #[inline(always)]
+            fn le(self, o: Self) -> $m {
+                $f::le(self, o)
+            }
+            #[inline(always)]
+            fn gt(self, o: Self) -> $m {
+                $f::gt(self, o)
+            }
+            #[inline(always)]
+            fn ge(self, o: Self) -> $m {
+                $f::ge(self, o)
+            }
+            #[inline(always)]
+            fn eq(self, o: Self) -> $m {
+                $f::eq(self, o)
+            }
+            #[inline(always)]
+            fn select(m: $m, a: Self, b: Self) -> Self {
+                $f::select(m, a, b)
+            }
+        }
+
+        impl $crate::accel::lanes::LaneMask for $m {
+            #[inline(always)]
+            fn all(on: bool) -> Self {
+                $m::all(on)
+            }
+            #[inline(always)]
+            fn or(self, o: Self) -> Self {
+                $m::or(self, o)
+            }
+            #[inline(always)]
+            fn and_not(self, o: Self) -> Self {
+                $m::and_not(self, o)
+            }
+            #[inline(always)]
+            fn bits(self) -> u32 {
+                $m::bits(self)
+            }
+        }
+    };
+}
+pub(super) use impl_lanes;
+
+impl_lanes!(F4, M4, 4);
+
+impl F4 {
     /// A point's three coordinates in lanes 0-2, lane 3 zero.
     #[inline(always)]
     pub fn xyz(p: [f32; 3]) -> F4 {

@@ -24,6 +24,8 @@ mod build;
 mod flat;
 mod instances;
 mod lanes;
+#[cfg(target_arch = "x86_64")]
+mod lanes8;
 mod packet;
 mod params;
 mod plane_cost;
@@ -66,8 +68,9 @@ pub(crate) mod test_rng {
 
 pub use aabb::Aabb;
 pub use instances::{Part, PartTree, PrimMap, TwoLevel};
-pub use packet::LANES;
+pub use packet::{LANES, WIDE_LANES};
 pub use params::{BuildParams, SplitMethod};
+pub use query::force_narrow_packets;
 pub use refit::RefitTree;
 pub use stats::TreeStats;
 pub use traverse::{WalkCounts, prefetch};

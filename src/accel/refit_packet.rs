@@ -16,12 +16,12 @@ use super::lanes::F4;
 use super::packet::{LANES, PacketRays};
 use super::refit::RefitTree;
 use super::tree::MAX_DEPTH;
-use super::triangle::{RayPre4, intersect4};
+use super::triangle::{RayPre4, intersect_packet};
 use super::{Hit, Ray};
 
 /// Per lane, where the rays enter `b` (before `limit`), and the lanes of `active` that do.
 #[inline(always)]
-fn enter(rays: &PacketRays, b: &Aabb, limit: F4, active: u32) -> (F4, u32) {
+fn enter(rays: &PacketRays<F4, LANES>, b: &Aabb, limit: F4, active: u32) -> (F4, u32) {
     let (t0, t1) = rays.clip(b, limit);
     (t0, active & !t0.gt(t1).bits())
 }
@@ -39,7 +39,7 @@ impl RefitTree {
         let n = rays.len();
         debug_assert!((1..=LANES).contains(&n) && t_max.len() == n);
         let (nodes, refs, triangles) = self.walk_arrays();
-        let rays4 = PacketRays::new(rays);
+        let rays4 = PacketRays::<F4, LANES>::new(rays);
         let mut best = std::array::from_fn::<f32, LANES, _>(|i| t_max[i.min(n - 1)]);
         let mut best_v = F4::new(best);
         let (entry, active) = enter(&rays4, &self.bounds(), best_v, (1 << n) - 1);
@@ -63,7 +63,8 @@ impl RefitTree {
                 Child::Inner(i) => i,
                 Child::Leaf(start, count) => {
                     for j in Child::leaf_range(start, count) {
-                        let (hit, [t, b1, b2]) = intersect4(&pre, &triangles[j], best_v, lanes);
+                        let (hit, [t, b1, b2]) =
+                            intersect_packet(&pre, &triangles[j], best_v, lanes);
                         for k in (0..LANES).filter(|k| hit >> k & 1 == 1) {
                             hits[k] = Some(Hit {
                                 t: t[k],

@@ -4,7 +4,7 @@
 //! vertex hits at least one of the triangles meeting there, and never slips between them. Edge
 //! functions that come out exactly zero are recomputed in f64, as the paper prescribes.
 
-use super::lanes::F4;
+use super::lanes::{F4, LaneMask, Lanes};
 use super::{Hit, Ray};
 use glam::{Mat3A, Vec3, Vec3A};
 
@@ -91,61 +91,72 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
     Some((t, v * inv_det, w * inv_det))
 }
 
-/// Four rays' `RayPre`, lane by lane, so that one triangle is tested against four rays at once.
-pub(super) struct RayPre4 {
-    origin: [F4; 3],
+/// `N` rays' `RayPre`, lane by lane, so that one triangle is tested against `N` rays at once
+/// (four in `F4`'s lanes, eight in `F8`'s).
+pub(super) struct RayPack<L, const N: usize> {
+    origin: [L; 3],
     /// `cols[c][r]`: row `r` of the shear's column `c`, per lane.
-    cols: [[F4; 3]; 3],
-    rays: [Ray; 4],
+    cols: [[L; 3]; 3],
+    rays: [Ray; N],
 }
 
-impl RayPre4 {
+/// Four rays' `RayPre`, in SSE lanes.
+pub(super) type RayPre4 = RayPack<F4, 4>;
+
+impl<L: Lanes<N>, const N: usize> RayPack<L, N> {
     /// The shear of each ray exactly as `RayPre::new` builds it (the same axis choice and the
-    /// same three divisions per ray, four rays to a division instruction).
-    pub(super) fn new(rays: [Ray; 4]) -> RayPre4 {
-        let mut axes = [[0usize; 3]; 4];
-        let mut pick = [[0.0f32; 4]; 3];
+    /// same three divisions per ray, `N` rays to a division instruction).
+    #[inline(always)]
+    pub(super) fn new(rays: [Ray; N]) -> Self {
+        let mut axes = [[0usize; 3]; N];
+        let mut pick = [[0.0f32; N]; 3];
         for (i, r) in rays.iter().enumerate() {
             let (kx, ky, kz) = shear_axes(r.dir);
             axes[i] = [kx, ky, kz];
             let d = r.dir.to_array();
             (pick[0][i], pick[1][i], pick[2][i]) = (d[kx], d[ky], d[kz]);
         }
-        let [dx, dy, dz] = pick.map(F4::new);
+        // No `array::map` over lane constructors here: the eight-lane walk needs every lane
+        // operation inlined (see `KdTree::batch_in`).
+        let (dx, dy, dz) = (L::new(pick[0]), L::new(pick[1]), L::new(pick[2]));
         let sx = dx.div(dz).to_array();
         let sy = dy.div(dz).to_array();
-        let sz = F4::splat(1.0).div(dz).to_array();
+        let sz = L::splat(1.0).div(dz).to_array();
         // Column `kx` is the unit x vector, column `ky` unit y, column `kz` (-sx, -sy, sz).
-        let mut cols = [[[0.0f32; 4]; 3]; 3];
+        let mut cols = [[[0.0f32; N]; 3]; 3];
         for (i, [kx, ky, kz]) in axes.into_iter().enumerate() {
             cols[kx][0][i] = 1.0;
             cols[ky][1][i] = 1.0;
             (cols[kz][0][i], cols[kz][1][i], cols[kz][2][i]) = (-sx[i], -sy[i], sz[i]);
         }
-        let [ox, oy, oz, _] = F4::columns(rays.map(|r| r.origin.extend(0.0).to_array()));
-        RayPre4 {
-            origin: [ox, oy, oz],
-            cols: cols.map(|c| c.map(F4::new)),
+        let mut origin = [[0.0f32; N]; 3];
+        for (i, r) in rays.iter().enumerate() {
+            (origin[0][i], origin[1][i], origin[2][i]) = (r.origin.x, r.origin.y, r.origin.z);
+        }
+        let lanes = |c: [[f32; N]; 3]| [L::new(c[0]), L::new(c[1]), L::new(c[2])];
+        RayPack {
+            origin: lanes(origin),
+            cols: [lanes(cols[0]), lanes(cols[1]), lanes(cols[2])],
             rays,
         }
     }
 
     /// Lane `i`'s `v - origin`, the vector the shear multiplies.
     #[inline(always)]
-    fn relative(&self, v: Vec3) -> [F4; 3] {
+    fn relative(&self, v: Vec3) -> [L; 3] {
         // Written out: `array::map` here is not always inlined, and the walk that calls it out
         // of line runs a third slower.
         [
-            F4::splat(v.x).sub(self.origin[0]),
-            F4::splat(v.y).sub(self.origin[1]),
-            F4::splat(v.z).sub(self.origin[2]),
+            L::splat(v.x).sub(self.origin[0]),
+            L::splat(v.y).sub(self.origin[1]),
+            L::splat(v.z).sub(self.origin[2]),
         ]
     }
 
     /// Row `r` of lane `i`'s sheared vertex, from its `relative` vector: row `r` of
     /// `shear * rel` as glam computes it, `(x_axis * rel.x + y_axis * rel.y) + z_axis * rel.z`.
     #[inline(always)]
-    fn row(&self, rel: &[F4; 3], r: usize) -> F4 {
+    fn row(&self, rel: &[L; 3], r: usize) -> L {
         self.cols[0][r]
             .mul(rel[0])
             .add(self.cols[1][r].mul(rel[1]))
@@ -173,18 +184,18 @@ fn shear_axes(d: Vec3) -> (usize, usize, usize) {
     }
 }
 
-/// `intersect` for the four rays of `pre` on the lanes set in `lanes`: bit `i` of the mask is set
+/// `intersect` for the `N` rays of `pre` on the lanes set in `lanes`: bit `i` of the mask is set
 /// where `intersect(lane i, tri, t_max[i])` hits, with its `(t, b1, b2)` in lane `i`. Each lane
 /// runs the scalar test's IEEE operations in the same order, so results are bit for bit the
 /// scalar ones; a lane with an edge function exactly zero (the f64 recompute) runs the scalar
 /// test itself.
 #[inline(always)]
-pub(super) fn intersect4(
-    pre: &RayPre4,
+pub(super) fn intersect_packet<L: Lanes<N>, const N: usize>(
+    pre: &RayPack<L, N>,
     tri: &[Vec3; 3],
-    t_max: F4,
+    t_max: L,
     lanes: u32,
-) -> (u32, [[f32; 4]; 3]) {
+) -> (u32, [[f32; N]; 3]) {
     let rel = [
         pre.relative(tri[0]),
         pre.relative(tri[1]),
@@ -196,14 +207,14 @@ pub(super) fn intersect4(
     let u = cx.mul(by).sub(cy.mul(bx));
     let v = ax.mul(cy).sub(ay.mul(cx));
     let w = bx.mul(ay).sub(by.mul(ax));
-    let zero = F4::splat(0.0);
+    let zero = L::splat(0.0);
     let exact_zero = u.eq(zero).or(v.eq(zero)).or(w.eq(zero)).bits() & lanes;
     let negative = u.lt(zero).or(v.lt(zero)).or(w.lt(zero)).bits();
     let positive = u.gt(zero).or(v.gt(zero)).or(w.gt(zero)).bits();
     // Most tests end here, every lane outside the triangle: the depths and the division are
     // computed only where a lane may still hit.
     if lanes & (exact_zero | !(negative & positive)) == 0 {
-        return (0, [[0.0; 4]; 3]);
+        return (0, [[0.0; N]; 3]);
     }
     let (az, bz, cz) = (
         pre.row(&rel[0], 2),
@@ -216,11 +227,11 @@ pub(super) fn intersect4(
     let t_signed = t_scaled.flip_sign_of(det);
     let far = t_max.mul(det.abs());
     let ahead = t_signed.gt(zero).bits();
-    let beyond = far.ge(F4::splat(f32::MIN_POSITIVE)).bits()
+    let beyond = far.ge(L::splat(f32::MIN_POSITIVE)).bits()
         & t_signed
-            .gt(far.mul(F4::splat(1.0 + 8.0 * f32::EPSILON)))
+            .gt(far.mul(L::splat(1.0 + 8.0 * f32::EPSILON)))
             .bits();
-    let inv_det = F4::splat(1.0).div(det);
+    let inv_det = L::splat(1.0).div(det);
     let t = t_scaled.mul(inv_det);
     let in_range = t.gt(zero).bits() & t.lt(t_max).bits();
     let mut hit = lanes
@@ -237,7 +248,7 @@ pub(super) fn intersect4(
     ];
     if exact_zero != 0 {
         let limits = t_max.to_array();
-        for i in (0..4).filter(|i| exact_zero >> i & 1 == 1) {
+        for i in (0..N).filter(|i| exact_zero >> i & 1 == 1) {
             if let Some((t, b1, b2)) = intersect(&RayPre::new(&pre.rays[i]), tri, limits[i]) {
                 hit |= 1 << i;
                 [out[0][i], out[1][i], out[2][i]] = [t, b1, b2];
@@ -261,7 +272,7 @@ pub fn nearest4(
     let mut limit = t_max;
     let mut best = [None; 4];
     for (prim, tri) in candidates {
-        let (hits, [t, b1, b2]) = intersect4(&pre, &tri, F4::new(limit), active);
+        let (hits, [t, b1, b2]) = intersect_packet(&pre, &tri, F4::new(limit), active);
         for i in (0..4).filter(|i| hits >> i & 1 == 1) {
             limit[i] = t[i];
             best[i] = Some(Hit {
@@ -387,7 +398,7 @@ mod tests {
             let pres = rays.map(|r| RayPre::new(&r));
             let pre4 = RayPre4::new(rays);
             let lanes = if k % 5 == 0 { 0b1011 } else { 0b1111 };
-            let (hit, out) = intersect4(&pre4, &tri, F4::new(limits), lanes);
+            let (hit, out) = intersect_packet(&pre4, &tri, F4::new(limits), lanes);
             for i in 0..4 {
                 let scalar = (lanes >> i & 1 == 1)
                     .then(|| intersect(&pres[i], &tri, limits[i]))

@@ -9,7 +9,9 @@ use super::median;
 use super::rays::{
     Eyes, TimedRay, camera_rays, read_rays, shadow_rays, stereo_camera_rays, write_rays,
 };
-use crate::accel::{BruteForce, BuildParams, Intersect, KdTree, Ray, WalkCounts};
+use crate::accel::{
+    BruteForce, BuildParams, Intersect, KdTree, Ray, WalkCounts, force_narrow_packets,
+};
 use crate::error::{Error, Result};
 use crate::render::Backend;
 use crate::scene::Scene;
@@ -121,6 +123,7 @@ impl RaySet {
 /// Traces all rays (closest hit or any hit) in parallel chunks; seconds and what was found. The
 /// sums are added chunk by chunk in order, so they do not depend on the thread count.
 fn time_rays(accel: &dyn Intersect, rays: &RaySet, any: bool, walk: Walk) -> (f64, Found) {
+    force_narrow_packets(walk == Walk::Packet4);
     let t = Instant::now();
     let chunks: Vec<Found> = rays.chunks(|rays, t_max| {
         let mut f = Found::default();
@@ -139,12 +142,14 @@ fn time_rays(accel: &dyn Intersect, rays: &RaySet, any: bool, walk: Walk) -> (f6
                     *h = accel.closest_hit(r, tm);
                 }
             }
-            (Walk::Packet, true) => {
+            (Walk::Packet | Walk::Packet4, true) => {
                 accel.any_hits(rays, t_max, &mut occluded[..n]);
                 f.hits = occluded[..n].iter().filter(|&&o| o).count() as u64;
                 return f;
             }
-            (Walk::Packet, false) => accel.closest_hits(rays, t_max, &mut hits[..n]),
+            (Walk::Packet | Walk::Packet4, false) => {
+                accel.closest_hits(rays, t_max, &mut hits[..n])
+            }
         }
         for h in hits[..n].iter().flatten() {
             f.hits += 1;
@@ -163,6 +168,7 @@ fn time_rays(accel: &dyn Intersect, rays: &RaySet, any: bool, walk: Walk) -> (f6
 /// Per ray: inner nodes, leaves and triangle tests of a kd-tree walk (an untimed pass). A packet
 /// counts a node once for all its rays.
 fn walk_work(tree: &KdTree, rays: &RaySet, any: bool, walk: Walk) -> [f64; 3] {
+    force_narrow_packets(walk == Walk::Packet4);
     let chunks: Vec<WalkCounts> = rays.chunks(|rays, t_max| {
         let mut c = WalkCounts::default();
         let mut hits = [None; 256];
@@ -175,8 +181,12 @@ fn walk_work(tree: &KdTree, rays: &RaySet, any: bool, walk: Walk) -> [f64; 3] {
             (Walk::Single, false) => rays.iter().zip(t_max).for_each(|(r, &tm)| {
                 tree.closest_hit_counted(r, tm, &mut c);
             }),
-            (Walk::Packet, true) => tree.any_hits_counted(rays, t_max, &mut occluded[..n], &mut c),
-            (Walk::Packet, false) => tree.closest_hits_counted(rays, t_max, &mut hits[..n], &mut c),
+            (Walk::Packet | Walk::Packet4, true) => {
+                tree.any_hits_counted(rays, t_max, &mut occluded[..n], &mut c)
+            }
+            (Walk::Packet | Walk::Packet4, false) => {
+                tree.closest_hits_counted(rays, t_max, &mut hits[..n], &mut c)
+            }
         }
         c
     });
@@ -282,6 +292,7 @@ pub fn bench_accel(
                         method: match w {
                             Walk::Single => method.label(),
                             Walk::Packet => format!("{}+packets", method.label()),
+                            Walk::Packet4 => format!("{}+packets4", method.label()),
                         },
                         triangles: tris.len(),
                         threads,

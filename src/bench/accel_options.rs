@@ -65,9 +65,10 @@ pub struct AccelBenchOptions {
     /// tracing takes a fraction of a second, so on a shared machine more samples steady it.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub trace_repeat: u32,
-    /// How kd-tree rows trace: `single` (one ray at a time) and/or `packet` (coherent runs of
-    /// up to four consecutive rays together, `closest_hits`/`any_hits`: rows named
-    /// `METHOD+packets`). Both find bit-identical hits.
+    /// How kd-tree rows trace: `single` (one ray at a time), `packet` (coherent runs of
+    /// consecutive rays together as `closest_hits`/`any_hits` walk them: up to eight where the
+    /// CPU has AVX, else four; rows named `METHOD+packets`) and/or `packet4` (runs of up to four
+    /// on every CPU, `METHOD+packets4`). All find bit-identical hits.
     #[arg(
         long = "walk",
         value_enum,
@@ -122,6 +123,9 @@ pub struct AccelBenchOptions {
 pub enum Walk {
     Single,
     Packet,
+    /// `Packet` held to four lanes where the CPU has AVX.
+    #[value(name = "packet4")]
+    Packet4,
 }
 
 /// A cost for `--traversal-cost`: finite and positive.
