@@ -2,8 +2,9 @@
 //! the cutoff do not exist for any ray, and shadow rays pass cut-outs and let `1 - a` through
 //! each BLEND surface. Scenes without MASK or BLEND materials skip all of it.
 
+use super::BATCH;
 use super::integrator::{Integrator, RayCounts, bump};
-use crate::accel::{Hit, Intersect, LANES, Ray};
+use crate::accel::{Hit, Intersect, Ray};
 use crate::scene::light::{Light, LightKind};
 use crate::scene::material::AlphaMode;
 use glam::Vec3;
@@ -30,13 +31,13 @@ impl<A: Intersect> Integrator<'_, A> {
             return 0;
         }
         let mut passed = 0u32;
-        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
         current[..rays.len()].copy_from_slice(rays);
-        let mut travelled = [0.0f32; LANES];
+        let mut travelled = [0.0f32; BATCH];
         for crossing in 0..=MAX_CROSSINGS {
-            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-            let mut limits = [0.0; LANES];
-            let mut lanes = [0usize; LANES];
+            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+            let mut limits = [0.0; BATCH];
+            let mut lanes = [0usize; BATCH];
             let mut k = 0;
             for (i, hit) in hits.iter_mut().enumerate() {
                 let Some(h) = *hit else { continue };
@@ -58,7 +59,7 @@ impl<A: Intersect> Integrator<'_, A> {
                 return passed;
             }
             bump(counts, |c| c.secondary += k as u64);
-            let mut found = [None; LANES];
+            let mut found = [None; BATCH];
             self.scene
                 .accel
                 .closest_hits(&next[..k], &limits[..k], &mut found[..k]);
@@ -87,7 +88,7 @@ impl<A: Intersect> Integrator<'_, A> {
     ) {
         let n = rays.len();
         if !self.transparent {
-            let mut blocked = [false; LANES];
+            let mut blocked = [false; BATCH];
             self.scene.accel.any_hits(rays, t_max, &mut blocked[..n]);
             for (o, b) in out.iter_mut().zip(blocked) {
                 *o = if b { 0.0 } else { 1.0 };
@@ -95,9 +96,9 @@ impl<A: Intersect> Integrator<'_, A> {
             return;
         }
         out.fill(1.0);
-        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-        let mut limits = [0.0; LANES];
-        let mut lanes = [0usize; LANES];
+        let mut current = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+        let mut limits = [0.0; BATCH];
+        let mut lanes = [0usize; BATCH];
         current[..n].copy_from_slice(rays);
         limits[..n].copy_from_slice(t_max);
         for (i, l) in lanes[..n].iter_mut().enumerate() {
@@ -113,7 +114,7 @@ impl<A: Intersect> Integrator<'_, A> {
                 bump(counts, |c| c.shadow += k as u64);
             }
             first = false;
-            let mut found = [None; LANES];
+            let mut found = [None; BATCH];
             self.scene
                 .accel
                 .closest_hits(&current[..k], &limits[..k], &mut found[..k]);

@@ -2,13 +2,14 @@
 //! the plain mean of its samples (a box filter over the pixel, WHITTED.md section 3). Pixel values
 //! depend only on the pixel's own samples, so tile order and thread count cannot change the image.
 
+use super::BATCH;
 use super::camera::EyeCamera;
 use super::integrator::{Integrator, Primary, PrimaryRecord, RayCounts};
 use super::reproject::{
     EdgeTest, FinishedTile, PixelReuse, Reprojection, Sample, SourcePixels, SourceTile,
 };
 use super::sampling::pixel_sample;
-use crate::accel::{Intersect, LANES, Ray};
+use crate::accel::{Intersect, Ray};
 use crate::output::Image;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -111,8 +112,10 @@ pub fn render_views<A: Intersect>(
     );
     let (w, h, spp) = (first.width, first.height, first.spp);
     let tiles_x = w.div_ceil(TILE);
-    // A packet's pixels: a 2x2 quad of one view, or a 2x1 pair of each of two views.
-    let (block_w, block_h) = if views.len() == 1 { (2, 2) } else { (2, 1) };
+    // A packet's pixels: a 4x2 block of one view, or a 2x2 quad of each of two views (both
+    // eyes' rays of one quad in one packet where they share an octant).
+    const _: () = assert!(BATCH == 8);
+    let (block_w, block_h) = if views.len() == 1 { (4, 2) } else { (2, 2) };
     // One tile per task: tiles differ in cost by orders of magnitude (sky against a glass
     // sphere), and rayon's default splitting left a core idle for about a tenth of each eye
     // waiting on the last large chunk.
@@ -151,13 +154,13 @@ pub fn render_views<A: Intersect>(
                 source: source.as_mut(),
             };
             let (mut radiance_taken, mut misses_taken) = (0u64, 0u64);
-            // The pixels that need the integrator, four at a time: each sample's camera rays,
+            // The pixels that need the integrator, `BATCH` at a time: each sample's camera rays,
             // and then their shadow, mirror and refraction rays, travel the tree as packets.
             // A pixel still sums its own samples in order, so the image does not depend on the
             // grouping. Pixels of a target view known without a ray are set on the way: where
             // every source sample around missed (the background), or, under
             // `"reproject-radiance"`, the radiance that landed there.
-            let mut pending: SmallVec<[Lane; LANES]> = SmallVec::new();
+            let mut pending: SmallVec<[Lane; BATCH]> = SmallVec::new();
             for by in (y0..y1).step_by(block_h) {
                 for bx in (x0..x1).step_by(block_w) {
                     for (v, view) in views.iter().enumerate() {
@@ -183,7 +186,7 @@ pub fn render_views<A: Intersect>(
                                             y,
                                             reuse,
                                         });
-                                        if pending.len() == LANES {
+                                        if pending.len() == BATCH {
                                             packets.trace(&pending, &mut out);
                                             pending.clear();
                                         }
@@ -265,24 +268,24 @@ struct Packets<'a, 'i, A: Intersect> {
 }
 
 impl<A: Intersect> Packets<'_, '_, A> {
-    /// Traces every sample of up to `LANES` pixels as packets, and sets the pixels.
+    /// Traces every sample of up to `BATCH` pixels as packets, and sets the pixels.
     fn trace(&self, lanes: &[Lane], out: &mut TileOut) {
         let (spp, w) = (self.spp, self.width);
         let (x0, y0, tw) = out.origin;
         let role = self.views[0].role;
         let geometry = self.integrator.scene.geometry;
-        let mut sums = [Vec3::ZERO; LANES];
-        let mut radiance = [Vec3::ZERO; LANES];
-        let mut records = [PrimaryRecord::NONE; LANES];
+        let mut sums = [Vec3::ZERO; BATCH];
+        let mut radiance = [Vec3::ZERO; BATCH];
+        let mut records = [PrimaryRecord::NONE; BATCH];
         let n = lanes.len();
         // Samples go four at a time: a reused pixel verifies the four samples' rays against
         // its candidates together, four rays to each triangle test.
         for first in (0..spp).step_by(SAMPLE_GROUP) {
             let group = ((spp - first) as usize).min(SAMPLE_GROUP);
-            let mut rays = [[Ray::new(Vec3::ZERO, Vec3::Z); LANES]; SAMPLE_GROUP];
-            let mut limits = [[0.0; LANES]; SAMPLE_GROUP];
-            let mut known = [[None; LANES]; SAMPLE_GROUP];
-            let mut film_offset = [[Vec2::ZERO; LANES]; SAMPLE_GROUP];
+            let mut rays = [[Ray::new(Vec3::ZERO, Vec3::Z); BATCH]; SAMPLE_GROUP];
+            let mut limits = [[0.0; BATCH]; SAMPLE_GROUP];
+            let mut known = [[None; BATCH]; SAMPLE_GROUP];
+            let mut film_offset = [[Vec2::ZERO; BATCH]; SAMPLE_GROUP];
             for (i, lane) in lanes.iter().enumerate() {
                 let view = &self.views[lane.view];
                 let film = &view.film;

@@ -4,9 +4,10 @@
 //! with the material inputs of WHITTED-materials.md: textures on every slot, normal maps, and
 //! alpha coverage (MASK hits that do not exist for any ray, BLEND surfaces over what lies behind).
 
+use super::BATCH;
 use super::shading::{self, ShadingModel, brdf, dielectric_fresnel, schlick};
 use super::surface::{SceneView, Shading, Surface};
-use crate::accel::{Hit, Intersect, LANES, Ray};
+use crate::accel::{Hit, Intersect, Ray};
 use crate::scene::light::LightKind;
 use crate::scene::material::{AlphaMode, Material};
 use glam::Vec3;
@@ -200,7 +201,7 @@ impl<A: Intersect> Integrator<'_, A> {
         out[0]
     }
 
-    /// Radiance along up to `LANES` camera rays (depth 1). The rays travel the tree as a packet,
+    /// Radiance along up to `BATCH` camera rays (depth 1). The rays travel the tree as a packet,
     /// and so do, level by level, the shadow rays of their hits to each light and their mirror
     /// and refraction rays. Each ray's radiance is bit for bit what it would be alone: a lane adds
     /// the same terms in the same order. `primary` says which camera hits are already known
@@ -214,14 +215,14 @@ impl<A: Intersect> Integrator<'_, A> {
         out: &mut [Vec3],
     ) {
         let n = rays.len();
-        assert!(n <= LANES && t_max.len() == n && out.len() == n);
-        let mut hits = [None; LANES];
-        let mut known = [(0u32, 0u32); LANES];
+        assert!(n <= BATCH && t_max.len() == n && out.len() == n);
+        let mut hits = [None; BATCH];
+        let mut known = [(0u32, 0u32); BATCH];
         if let Primary::Known(k) = primary {
             // Trace the lanes without a known hit as one (smaller) packet.
-            let mut lanes = [0usize; LANES];
-            let mut sub_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-            let mut sub_t = [0.0; LANES];
+            let mut lanes = [0usize; BATCH];
+            let mut sub_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+            let mut sub_t = [0.0; BATCH];
             let mut m = 0;
             for (i, k) in k[..n].iter().enumerate() {
                 match k {
@@ -232,7 +233,7 @@ impl<A: Intersect> Integrator<'_, A> {
                     }
                 }
             }
-            let mut sub_hits = [None; LANES];
+            let mut sub_hits = [None; BATCH];
             if m > 0 {
                 self.scene
                     .accel
@@ -272,11 +273,11 @@ impl<A: Intersect> Integrator<'_, A> {
         out: &mut [Vec3],
     ) {
         let n = rays.len();
-        assert!(n <= LANES && t_max.len() == n && out.len() == n);
-        let mut hits = [None; LANES];
+        assert!(n <= BATCH && t_max.len() == n && out.len() == n);
+        let mut hits = [None; BATCH];
         self.scene.accel.closest_hits(rays, t_max, &mut hits[..n]);
         self.pass_cut_outs(rays, t_max, &mut hits[..n], counts);
-        self.shade(rays, &hits[..n], &[(0, 0); LANES], depth, None, counts, out);
+        self.shade(rays, &hits[..n], &[(0, 0); BATCH], depth, None, counts, out);
     }
 
     /// Radiance of each lane from its hit (`None`: the background), recursing below
@@ -286,7 +287,7 @@ impl<A: Intersect> Integrator<'_, A> {
         &self,
         rays: &[Ray],
         hits: &[Option<Hit>],
-        known: &[(u32, u32); LANES],
+        known: &[(u32, u32); BATCH],
         depth: u32,
         record: Option<&mut [PrimaryRecord]>,
         counts: &Cell<RayCounts>,
@@ -294,7 +295,7 @@ impl<A: Intersect> Integrator<'_, A> {
     ) {
         // Filled in place: built by `std::array::from_fn`, the array was assembled aside and
         // copied in some builds (7% of the default pipeline's time in `memmove`).
-        let mut surfaces: [Option<Surface>; LANES] = [const { None }; LANES];
+        let mut surfaces: [Option<Surface>; BATCH] = [const { None }; BATCH];
         for (i, s) in surfaces.iter_mut().enumerate() {
             if let Some(Some(h)) = hits.get(i) {
                 *s = Some(self.scene.surface(&rays[i], h));
@@ -338,15 +339,15 @@ impl<A: Intersect> Integrator<'_, A> {
         // Each lane's mirror ray, (glass) refraction ray and (BLEND) continuation ray, traced as
         // three packets; a lane adds the reflection before the refraction, as WHITTED.md's order
         // has it, and what lies behind a BLEND surface last.
-        let mut bounces = [[None::<Bounce>; 3]; LANES];
+        let mut bounces = [[None::<Bounce>; 3]; BATCH];
         for (i, s) in surfaces.iter().enumerate() {
             if let Some(s) = s {
                 bounces[i] = self.bounces(&rays[i], s);
             }
         }
         for kind in 0..3 {
-            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-            let mut lanes = [0usize; LANES];
+            let mut next = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+            let mut lanes = [0usize; BATCH];
             let mut k = 0;
             for (i, b) in bounces.iter().enumerate() {
                 if let (Some(b), Some(s)) = (b[kind], &surfaces[i]) {
@@ -358,8 +359,8 @@ impl<A: Intersect> Integrator<'_, A> {
                 continue;
             }
             bump(counts, |c| c.secondary += k as u64);
-            let mut incoming = [Vec3::ZERO; LANES];
-            let far = [f32::INFINITY; LANES];
+            let mut incoming = [Vec3::ZERO; BATCH];
+            let far = [f32::INFINITY; BATCH];
             self.trace(&next[..k], &far[..k], depth + 1, counts, &mut incoming[..k]);
             for (&i, l) in lanes[..k].iter().zip(&incoming[..k]) {
                 let w = bounces[i][kind].expect("a traced bounce").weight;
@@ -374,13 +375,13 @@ impl<A: Intersect> Integrator<'_, A> {
     /// instead of its ray. Returns each lane's direct light and its shadow answers as bits.
     fn direct_light(
         &self,
-        surfaces: &[Option<Surface>; LANES],
-        known: &[(u32, u32); LANES],
+        surfaces: &[Option<Surface>; BATCH],
+        known: &[(u32, u32); BATCH],
         counts: &Cell<RayCounts>,
-    ) -> ([Vec3; LANES], [(u32, u32); LANES]) {
-        let mut direct = [Vec3::ZERO; LANES];
-        let mut answers = [(0u32, 0u32); LANES];
-        let mut queries: SmallVec<[(usize, LightQuery); 2 * LANES]> = SmallVec::new();
+    ) -> ([Vec3; BATCH], [(u32, u32); BATCH]) {
+        let mut direct = [Vec3::ZERO; BATCH];
+        let mut answers = [(0u32, 0u32); BATCH];
+        let mut queries: SmallVec<[(usize, LightQuery); 2 * BATCH]> = SmallVec::new();
         for (lane, s) in surfaces.iter().enumerate() {
             if let Some(s) = s {
                 for q in self.light_queries(s) {
@@ -391,10 +392,10 @@ impl<A: Intersect> Integrator<'_, A> {
         if queries.is_empty() {
             return (direct, answers);
         }
-        let mut shadow = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-        let mut limits = [0.0; LANES];
-        let mut traced = [0usize; LANES];
-        let mut visible = [0.0f32; LANES];
+        let mut shadow = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+        let mut limits = [0.0; BATCH];
+        let mut traced = [0usize; BATCH];
+        let mut visible = [0.0f32; BATCH];
         let (mut n_traced, mut n_known) = (0u64, 0u64);
         for light in 0..self.scene.lights.len() {
             let bit = if light < RECORDED_LIGHTS {
@@ -404,8 +405,8 @@ impl<A: Intersect> Integrator<'_, A> {
             };
             // This light's queries in lane order (at most one per lane), each answered by a
             // known bit or by a ray.
-            let mut members = [0usize; LANES];
-            let mut visible_of = [0.0f32; LANES];
+            let mut members = [0usize; BATCH];
+            let mut visible_of = [0.0f32; BATCH];
             let (mut n, mut k) = (0, 0);
             for (index, (lane, q)) in queries.iter().enumerate() {
                 if q.light != light {

@@ -16,6 +16,11 @@ mod shading;
 mod surface;
 mod view;
 
+/// Rays the renderer hands the tree at once: the widest packet the tree walks
+/// (`accel::WIDE_LANES`, eight where the CPU has AVX). Elsewhere the tree walks them as two
+/// packets of four, with the same hits, so images do not depend on the CPU.
+const BATCH: usize = crate::accel::WIDE_LANES;
+
 pub use backend::{Backend, NOT_BUILT};
 pub use camera::{EyeCamera, Rig, RigParams};
 pub use comfort::{
