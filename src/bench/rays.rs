@@ -77,10 +77,10 @@ pub enum Eyes {
     /// One pinhole at the camera.
     #[default]
     Center,
-    /// The left eye of the stereo rig alone (the baseline for `both`).
+    /// The left eye of the stereo rig alone, in the same 2x2 quads (the baseline for `both`).
     Left,
     /// Both eyes of an off-axis rig over the same film, in the order `eye_reuse = "paired"`
-    /// traces them: two pixels of the left eye, then the same two of the right.
+    /// traces them: a 2x2 quad of the left eye's pixels, then the same quad of the right's.
     Both,
 }
 
@@ -95,17 +95,21 @@ pub fn stereo_camera_rays(
 ) -> Vec<TimedRay> {
     let half = 0.5 * interaxial;
     let mut rays = Vec::with_capacity(2 * (film * film) as usize);
-    for y in 0..film {
-        for x0 in (0..film).step_by(2) {
-            let pair = x0..(x0 + 2).min(film);
-            let sides: &[f32] = match eyes {
-                Eyes::Center => &[0.0],
-                Eyes::Left => &[-half],
-                Eyes::Both => &[-half, half],
-            };
+    let sides: &[f32] = match eyes {
+        Eyes::Center => &[0.0],
+        Eyes::Left => &[-half],
+        Eyes::Both => &[-half, half],
+    };
+    // The centre camera's rays in rows, as `camera_rays`; an eye's in 2x2 quads, as the
+    // renderer's packets take them.
+    let quad: (u32, u32) = if eyes == Eyes::Center { (1, 1) } else { (2, 2) };
+    for y0 in (0..film).step_by(quad.1 as usize) {
+        for x0 in (0..film).step_by(quad.0 as usize) {
             for &side in sides {
-                for x in pair.clone() {
-                    rays.push(eye_ray(world, yfov, film, (x, y), side, convergence));
+                for y in y0..(y0 + quad.1).min(film) {
+                    for x in x0..(x0 + quad.0).min(film) {
+                        rays.push(eye_ray(world, yfov, film, (x, y), side, convergence));
+                    }
                 }
             }
         }
@@ -185,8 +189,8 @@ mod tests {
     }
 
     /// The stereo set: each pixel's two rays start `interaxial` apart and meet on the
-    /// convergence plane; groups of four are two left-eye pixels then the same two of the right,
-    /// the left set is the left halves, and the centre camera's rays are unchanged.
+    /// convergence plane; groups of eight are a quad of left-eye pixels then the same quad of
+    /// the right, the left set is the left halves, and the centre camera's rays are unchanged.
     #[test]
     fn stereo_rays_meet_on_the_convergence_plane_in_paired_order() {
         let world = Mat4::from_translation(Vec3::new(1.0, 2.0, 3.0));
@@ -196,11 +200,11 @@ mod tests {
         let center = stereo_camera_rays(world, 0.8, film, Eyes::Center, rig);
         assert_eq!(both.len(), 2 * left.len());
         assert_eq!(left.len(), (film * film) as usize);
-        for (k, group) in both.chunks(4).enumerate() {
-            for i in 0..2 {
-                let (l, r) = (group[i].0, group[i + 2].0);
-                assert_eq!(l.origin, left[2 * k + i].0.origin);
-                assert_eq!(l.dir, left[2 * k + i].0.dir);
+        for (k, group) in both.chunks(8).enumerate() {
+            for i in 0..4 {
+                let (l, r) = (group[i].0, group[i + 4].0);
+                assert_eq!(l.origin, left[4 * k + i].0.origin);
+                assert_eq!(l.dir, left[4 * k + i].0.dir);
                 assert!(((r.origin - l.origin).length() - 0.2).abs() < 1e-5);
                 // Both reach depth 4 (z = 3 - 4) at the same point.
                 let meet = |ray: Ray| ray.at((-1.0 - ray.origin.z) / ray.dir.z);
