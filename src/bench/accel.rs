@@ -7,7 +7,8 @@ pub use super::accel_table::{AccelRow, chart, csv_header, read_table};
 use super::accel_table::write_table;
 use super::median;
 use super::rays::{
-    Eyes, TimedRay, camera_rays, read_rays, shadow_rays, stereo_camera_rays, write_rays,
+    Eyes, TimedRay, camera_rays, read_rays, regroup_tiles, shadow_rays, stereo_camera_rays,
+    write_rays,
 };
 use crate::accel::{
     BruteForce, BuildParams, Intersect, KdTree, Ray, WalkCounts, force_narrow_packets,
@@ -235,6 +236,17 @@ pub fn bench_accel(
         let shadow = match &opts.shadow_rays {
             Some(p) => read_rays(p)?,
             None => shadow_rays(&sah_tree, &tris, &primary),
+        };
+        let (primary, shadow) = match (opts.rays_film, opts.tile) {
+            (Some(film), Some(tile)) => {
+                let (rays, t_max): (Vec<Ray>, Vec<f32>) = primary.iter().copied().unzip();
+                let mut found = vec![None; rays.len()];
+                sah_tree.closest_hits(&rays, &t_max, &mut found);
+                let hits: Vec<bool> = found.iter().map(Option::is_some).collect();
+                regroup_tiles(&primary, &shadow, &hits, film, tile)
+                    .map_err(|why| Error::input(Path::new("--tile"), why))?
+            }
+            _ => (primary, shadow),
         };
         drop(sah_tree);
         if let Some(dir) = &opts.save_rays {

@@ -93,6 +93,16 @@ pub struct AccelBenchOptions {
     /// direction, t_max) instead of the camera's.
     #[arg(long)]
     pub rays: Option<PathBuf>,
+    /// The replayed primary rays are a film of this many columns and rows (`1024x768`), row
+    /// by row; needed by `--tile`.
+    #[arg(long, value_parser = parse_size)]
+    pub rays_film: Option<(u32, u32)>,
+    /// Regroup the replayed rays into tiles of this many columns and rows (`4x2`, the
+    /// renderer's packet of one eye) before tracing: the camera rays tile by tile, and the
+    /// shadow rays, taken to be one per primary ray that hits in file order (as the peer
+    /// workload makes them), in the order of their camera rays. Rays are still counted per ray.
+    #[arg(long, value_parser = parse_size, requires = "rays_film")]
+    pub tile: Option<(u32, u32)>,
     /// Replay shadow rays (any-hit) from a file in the same format.
     #[arg(long)]
     pub shadow_rays: Option<PathBuf>,
@@ -126,6 +136,15 @@ pub enum Walk {
     /// `Packet` held to four lanes where the CPU has AVX.
     #[value(name = "packet4")]
     Packet4,
+}
+
+/// `COLUMNSxROWS`, both from 1 to 65,536 (`--rays-film`, `--tile`).
+fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
+    let parsed = s.split_once('x').and_then(|(w, h)| {
+        let (w, h) = (w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?);
+        ((1..=65_536).contains(&w) && (1..=65_536).contains(&h)).then_some((w, h))
+    });
+    parsed.ok_or_else(|| format!("'{s}' is not COLUMNSxROWS (each 1 to 65536)"))
 }
 
 /// A cost for `--traversal-cost`: finite and positive.

@@ -71,6 +71,54 @@ pub fn camera_rays(world: Mat4, yfov: f32, film: u32) -> Vec<TimedRay> {
         .collect()
 }
 
+/// The camera rays of a `film` (columns, rows) given row by row, regrouped tile by tile
+/// (`tile` columns and rows, row by row inside a tile), and the shadow rays in the order of
+/// their camera rays, where `shadow[k]` belongs to the `k`-th camera ray that `hits` (as the peer
+/// workload makes them). `None` when the counts do not fit: the reason.
+pub fn regroup_tiles(
+    primary: &[TimedRay],
+    shadow: &[TimedRay],
+    hits: &[bool],
+    (fw, fh): (u32, u32),
+    (tw, th): (u32, u32),
+) -> std::result::Result<(Vec<TimedRay>, Vec<TimedRay>), String> {
+    if primary.len() != (fw as usize) * (fh as usize) {
+        return Err(format!(
+            "{} camera rays are not a {fw}x{fh} film",
+            primary.len()
+        ));
+    }
+    let hit_count = hits.iter().filter(|&&h| h).count();
+    if shadow.len() != hit_count {
+        return Err(format!(
+            "{} shadow rays, but {hit_count} camera rays hit: the shadow rays must be one per hit",
+            shadow.len()
+        ));
+    }
+    let mut shadow_of = vec![usize::MAX; primary.len()];
+    for (k, i) in (0..primary.len()).filter(|&i| hits[i]).enumerate() {
+        shadow_of[i] = k;
+    }
+    let (mut p, mut s) = (
+        Vec::with_capacity(primary.len()),
+        Vec::with_capacity(shadow.len()),
+    );
+    for y0 in (0..fh).step_by(th as usize) {
+        for x0 in (0..fw).step_by(tw as usize) {
+            for y in y0..(y0 + th).min(fh) {
+                for x in x0..(x0 + tw).min(fw) {
+                    let i = (y * fw + x) as usize;
+                    p.push(primary[i]);
+                    if hits[i] {
+                        s.push(shadow[shadow_of[i]]);
+                    }
+                }
+            }
+        }
+    }
+    Ok((p, s))
+}
+
 /// Which eyes `bench accel` makes camera rays for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Eyes {
@@ -222,5 +270,24 @@ mod tests {
                 .collect()
         };
         assert_eq!(bits(&center), bits(&plain));
+    }
+
+    /// Tiles of a 3x3 film in 2x2 tiles: the camera rays tile by tile (ragged tiles at the
+    /// edges), each hit's shadow ray following its camera ray; counts that do not fit refused.
+    #[test]
+    fn regrouping_takes_tiles_and_carries_each_shadow_ray_with_its_camera_ray() {
+        let ray = |i: usize| (Ray::new(Vec3::splat(i as f32), Vec3::Z), i as f32);
+        let primary: Vec<TimedRay> = (0..9).map(ray).collect();
+        let hits: Vec<bool> = (0..9).map(|i| i % 3 != 1).collect();
+        let shadow: Vec<TimedRay> = (0..9)
+            .filter(|i| i % 3 != 1)
+            .map(|i| ray(100 + i))
+            .collect();
+        let (p, s) = regroup_tiles(&primary, &shadow, &hits, (3, 3), (2, 2)).unwrap();
+        let order = |rays: &[TimedRay]| rays.iter().map(|r| r.1 as usize).collect::<Vec<_>>();
+        assert_eq!(order(&p), [0, 1, 3, 4, 2, 5, 6, 7, 8]);
+        assert_eq!(order(&s), [100, 103, 102, 105, 106, 108]);
+        assert!(regroup_tiles(&primary, &shadow[1..], &hits, (3, 3), (2, 2)).is_err());
+        assert!(regroup_tiles(&primary, &shadow, &hits, (4, 2), (2, 2)).is_err());
     }
 }
