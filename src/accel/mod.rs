@@ -11,9 +11,9 @@
 //! `tree` (the compact layout), `traverse` and `refit` (the two walks; `refit_packet` walks
 //! refitted trees in packets, and `box_node` is the layout both refit walks read), `instances` (the
 //! two-level top), `update` (the per-frame policy), `stats`, `triangle` (the watertight ray-
-//! triangle test), `packet` (up to four rays walking together) with `lanes` (its four-lane
-//! arithmetic), and `query` (the tree's `Intersect`). Only what this file re-exports is visible
-//! outside.
+//! triangle test), `packet` (up to four or eight rays walking together) with `lanes` and
+//! `lanes8` (its four- and eight-lane arithmetic), and `query` (the tree's `Intersect`). Only
+//! what this file re-exports is visible outside.
 
 mod aabb;
 mod binned;

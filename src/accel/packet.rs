@@ -1,8 +1,9 @@
-//! Packet traversal: up to four rays whose directions have the same sign on every axis walk the
-//! kd-tree together, so a node is fetched, and its branch taken, once for all of them (Wald et
+//! Packet traversal: up to four rays (eight where the CPU has AVX, `query.rs`) whose directions
+//! have the same sign on every axis walk the kd-tree together, so a node is fetched, and its branch taken, once for all of them (Wald et
 //! al., "Interactive Rendering with Coherent Ray Tracing", 2001). Coherent rays (neighbouring
 //! camera rays, their shadow rays to one light, the two eyes' rays of one pixel) visit nearly
-//! the same nodes.
+//! the same nodes. The walk is written once over `lanes::Lanes`, for four SSE lanes and for the
+//! eight AVX lanes of `lanes8.rs`.
 //!
 //! Exactness: each lane visits exactly the nodes the single-ray walk (`traverse.rs`) visits for
 //! its ray, in the same order, with the same parametric intervals (the same IEEE operations, lane
