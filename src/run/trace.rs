@@ -12,8 +12,8 @@ use crate::pipeline::LoadedPipeline;
 use crate::render::{
     Backend, Budget, DepthProbe, EdgeTest, EyeCamera, EyeReuse, FilmParams, Integrator,
     ParallaxModel, ProbeCamera, RECORDED_LIGHTS, RayCounts, Reprojection, Rig, RigParams,
-    SceneView, SourcePixels, TILE, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole,
-    render_views, view_window,
+    SceneView, SourcePixels, TraceSettings, VIEWER_EYES, View, ViewFilm, ViewRole, render_views,
+    view_window,
 };
 use crate::scene::{Animation, PosedScene, framing_camera};
 use glam::{Mat4, Vec3};
@@ -381,7 +381,6 @@ impl<'p> FrameTracer<'p> {
                     pixels,
                     source_camera,
                     &cameras[0],
-                    TILE,
                     zfar.is_none(),
                     take_radiance,
                 )

@@ -94,9 +94,9 @@ impl Grid {
             let rows = (self.cells.as_slice(), windows.as_slice());
             plan_row(rows, &|y, x| y * w + x, (y, (w, h)), &(0..w), &mut band);
         }
+        assert!(h <= BAND_ROWS, "one band");
         Reprojection {
             width: w,
-            band_rows: h,
             bands: vec![band],
         }
     }
