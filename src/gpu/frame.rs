@@ -1,5 +1,5 @@
 //! Views of a posed frame traced on the GPU (`[render] backend = "gpu"`): the camera samples are
-//! the CPU's (`render::pixel_sample` and `EyeCamera::ray`, so both backends sample the same film
+//! the CPU's (`render::PixelSamples` and `EyeCamera::ray`, so both backends sample the same film
 //! points), every view's rays of a band of rows go in one batch, and each pixel is the mean of
 //! its samples summed in sample order, as `render/frame.rs` does. The trees are the CPU's, part
 //! for part (`accel::Updater`: static geometry, instances, refitted or rebuilt deforming
@@ -12,7 +12,7 @@ use super::whitted::{GpuScene, GpuWhitted};
 use crate::accel::{Ray, TwoLevel};
 use crate::error::Result;
 use crate::output::Image;
-use crate::render::{RayCounts, Rendered, SceneView, TILE, TraceSettings, ViewFilm, pixel_sample};
+use crate::render::{PixelSamples, RayCounts, Rendered, SceneView, TILE, TraceSettings, ViewFilm};
 use glam::{Vec2, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -99,8 +99,9 @@ impl GpuFrames {
                 for y in y0..y1 {
                     for x in 0..w {
                         let seed = [(y * w + x) as u32, v.film.frame, v.film.eye_seed];
+                        let samples = PixelSamples::new(spp as u32, seed);
                         for s in 0..spp as u32 {
-                            let o = pixel_sample(s, spp as u32, seed);
+                            let o = samples.get(s);
                             let f = Vec2::new(x as f32 + o.x, y as f32 + o.y);
                             let (ray, limit) = v.camera.ray(f.x, f.y);
                             rays.push(ray);

@@ -42,6 +42,8 @@ pub struct EyeCamera {
     to_rig: Mat4,
     /// Eye position on the rig's local X axis, metres.
     x_e: f32,
+    /// The eye in the world (`world` applied to `x_e`), once rather than per ray.
+    position: Vec3,
     /// Horizontal tangent shift of the frustum (off-axis only): `x_e / convergence`.
     shift: f32,
     /// Rotation of the eye about its local Y axis (toe-in only).
@@ -73,6 +75,7 @@ impl EyeCamera {
             world,
             to_rig: world.inverse(),
             x_e,
+            position: world.transform_point3(Vec3::new(x_e, 0.0, 0.0)),
             shift,
             toe,
             tan_x: tan_y * p.width as f32 / p.height as f32,
@@ -86,7 +89,7 @@ impl EyeCamera {
 
     /// World position of the eye.
     pub fn position(&self) -> Vec3 {
-        self.world.transform_point3(Vec3::new(self.x_e, 0.0, 0.0))
+        self.position
     }
 
     /// Primary ray through film point (px, py) in pixels (x right, y down), starting on the near
@@ -99,7 +102,7 @@ impl EyeCamera {
         );
         // eye_dir has depth 1 in the eye's own frame, so multiples of it measure depth.
         let cam_dir = self.toe * eye_dir;
-        let origin = self.world.transform_point3(Vec3::new(self.x_e, 0.0, 0.0));
+        let origin = self.position;
         let dir = self.world.transform_vector3(cam_dir);
         let len = dir.length();
         let start = origin + dir * self.znear;

@@ -8,7 +8,7 @@ use super::integrator::{Integrator, Primary, PrimaryRecord, RayCounts};
 use super::reproject::{
     EdgeTest, FinishedTile, PixelReuse, Reprojection, Sample, SourcePixels, SourceTile,
 };
-use super::sampling::pixel_sample;
+use super::sampling::PixelSamples;
 use crate::accel::{Intersect, Ray};
 use crate::output::Image;
 use glam::{Vec2, Vec3};
@@ -292,11 +292,14 @@ impl<A: Intersect> Packets<'_, '_, A> {
             for (i, lane) in lanes.iter().enumerate() {
                 let view = &self.views[lane.view];
                 let film = &view.film;
-                let seed = [(lane.y * w + lane.x) as u32, film.frame, film.eye_seed];
+                let samples = PixelSamples::new(
+                    spp,
+                    [(lane.y * w + lane.x) as u32, film.frame, film.eye_seed],
+                );
                 let mut lane_rays = [Ray::new(Vec3::ZERO, Vec3::Z); SAMPLE_GROUP];
                 let mut lane_limits = [0.0; SAMPLE_GROUP];
                 for k in 0..group {
-                    let o = pixel_sample(first + k as u32, spp, seed);
+                    let o = samples.get(first + k as u32);
                     let f = Vec2::new(lane.x as f32 + o.x, lane.y as f32 + o.y);
                     let (ray, limit) = view.camera.ray(f.x, f.y);
                     (rays[k][i], limits[k][i], film_offset[k][i]) = (ray, limit, o);

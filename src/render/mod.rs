@@ -33,7 +33,7 @@ pub use frame::{
 };
 pub use integrator::{Integrator, RECORDED_LIGHTS, RayCounts, TraceSettings, offset_origin};
 pub use reproject::{EdgeTest, Reprojection, SourcePixels};
-pub use sampling::pixel_sample;
+pub use sampling::{PixelSamples, pixel_sample};
 pub use shading::ShadingModel;
 pub use surface::SceneView;
 pub use view::{Eye, View};
