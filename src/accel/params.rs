@@ -36,15 +36,18 @@ pub struct BuildParams {
 /// The SAH's traversal cost for a kd-tree over `triangles` triangles: what a step costs against
 /// a triangle test (K_I = 20) grows once the tree outgrows the caches, so larger meshes get
 /// larger leaves. Measured with `bench accel --traversal-cost` and whole renders, 2 threads:
-/// - up to 32k triangles, 15: the Whitted scenes (7,938) traced 6-8% slower with 25-60 in
-///   `pipelines/diffuse.toml`, no faster in `default.toml`;
+/// - up to 32k triangles, 25: with eight-ray packets the Whitted scenes (7,938) rendered
+///   `pipelines/default.toml` in 0.474-0.482 s against 0.485-0.491 with 15, and
+///   `pipelines/diffuse.toml` in 0.212-0.214 s against 0.214-0.217 (three alternating runs,
+///   the images byte-identical); 40 was no better than 15 (0.470-0.489, 0.213-0.222). With
+///   four-ray packets 15 had been the best (25-60 traced `diffuse.toml` 6-8% slower);
 /// - up to 512k, 40: TransmissionTest (128,775) traced its frame in 8.9-9.0 s against 9.4-9.8 s
 ///   with 15 and 9.0-9.3 with 60; BrainStem and StanfordBunny the same as with 15;
 /// - above, 60: on the 1M peer mesh four-ray packets ran 12.6 Mrays/s against 10.3 with 15 and
 ///   11.9 with 40, single rays 8.5 against 7.9, and the build took 0.76 s against 1.39.
 pub fn traversal_cost_for(triangles: usize) -> f32 {
     match triangles {
-        0..32_768 => 15.0,
+        0..32_768 => 25.0,
         32_768..524_288 => 40.0,
         _ => 60.0,
     }
