@@ -36,7 +36,7 @@
 //! Under `"reproject-radiance"` a target pixel may also take the radiance that landed on it,
 //! with no ray at all: each record's radiance is a plane fitted to its samples (`plane.rs`),
 //! and the pixel takes the landed values where a bound on their error is within
-//! `RADIANCE_BOUND` (`band.rs`, `window_error`).
+//! `RADIANCE_BOUND` (`window.rs`, `window_error`).
 
 use super::camera::EyeCamera;
 use super::integrator::KnownHit;
@@ -49,8 +49,10 @@ use rayon::prelude::*;
 use std::ops::Range;
 
 mod band;
+mod cell;
 mod plane;
 mod source;
+mod window;
 
 pub use source::{EdgeTest, FinishedTile, Sample, SourcePixels, SourceTile};
 

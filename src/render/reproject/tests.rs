@@ -1,7 +1,9 @@
 //! The reuse rules on grids of cells filled by hand, without cameras.
 
-use super::band::{Cell, Landing, RowWindow, plan_row, row_windows};
+use super::band::{Landing, plan_row};
+use super::cell::Cell;
 use super::source::SourcePixel;
+use super::window::{RowWindow, row_windows};
 use super::*;
 use crate::accel::Hit;
 
