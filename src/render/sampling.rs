@@ -41,8 +41,9 @@ fn radical_inverse(i: u32) -> f32 {
 }
 
 /// The sample positions of one pixel: what its samples share (the grid's size, the seed's
-/// part of each hash chain) is computed once, not per sample. The renderer takes millions of
-/// samples a frame, and this was a twentieth of a diffuse frame's time.
+/// part of each hash chain, a Hammersley set's rotation) is computed once, not per sample. The
+/// renderer takes millions of samples a frame, and this was a twentieth of a diffuse frame's
+/// time.
 #[derive(Clone, Copy, Debug)]
 pub struct PixelSamples {
     spp: u32,
@@ -50,6 +51,8 @@ pub struct PixelSamples {
     n: u32,
     /// The hash chain over the seed.
     seeded: u32,
+    /// The Hammersley set's Cranley-Patterson rotation (unused by a grid).
+    rotation: Vec2,
 }
 
 impl PixelSamples {
@@ -57,10 +60,19 @@ impl PixelSamples {
     #[inline]
     pub fn new(spp: u32, seed: [u32; 3]) -> PixelSamples {
         let n = (spp as f64).sqrt() as u32;
+        let seeded = chain(CHAIN_START, &seed);
+        let square = n * n == spp;
         PixelSamples {
             spp,
-            n: if n * n == spp { n } else { 0 },
-            seeded: chain(CHAIN_START, &seed),
+            n: if square { n } else { 0 },
+            seeded,
+            rotation: match square {
+                true => Vec2::ZERO,
+                false => Vec2::new(
+                    unit(hash32(seeded ^ 0xffff_fff0)),
+                    unit(hash32(seeded ^ 0xffff_fff1)),
+                ),
+            },
         }
     }
 
@@ -75,10 +87,8 @@ impl PixelSamples {
             let jy = unit(hash32(sample ^ 1));
             Vec2::new((sx as f32 + jx) / n as f32, (sy as f32 + jy) / n as f32)
         } else {
-            let rx = unit(hash32(self.seeded ^ 0xffff_fff0));
-            let ry = unit(hash32(self.seeded ^ 0xffff_fff1));
-            let x = (s as f32 + 0.5) / self.spp as f32 + rx;
-            let y = radical_inverse(s) + ry;
+            let x = (s as f32 + 0.5) / self.spp as f32 + self.rotation.x;
+            let y = radical_inverse(s) + self.rotation.y;
             Vec2::new(x.fract(), y.fract())
         }
     }
