@@ -204,11 +204,11 @@ impl Texture {
     }
 }
 
-/// `x.floor()`, inline: on the baseline x86-64 target `floor` is a call into libm (a
-/// twentieth of a textured frame's time went to it). Every `f32` of magnitude 2^23 or more
-/// is an integer (or not finite) and is its own floor; below, truncation towards zero is the
-/// floor except for negative non-integers, one less. The sign is `x`'s, as `floor(-0.0)` is
-/// -0.0.
+/// `x.floor()`, inline: on the baseline x86-64 target `floor` is a call into libm (1.2% of a
+/// diffuse frame's profile; with the wraps halved, DamagedHelmet's frame is 6% faster). Every
+/// `f32` of magnitude 2^23 or more is an integer (or not finite) and is its own floor; below,
+/// truncation towards zero is the floor except for negative non-integers, one less. The sign
+/// is `x`'s, as `floor(-0.0)` is -0.0.
 #[inline]
 fn floor(x: f32) -> f32 {
     const INTEGRAL: f32 = 8_388_608.0; // 2^23
