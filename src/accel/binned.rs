@@ -287,14 +287,16 @@ impl Ctx<'_> {
             ev.clear();
             ev.reserve(2 * refs.len());
             let room = &mut ev.spare_capacity_mut()[..2 * refs.len()];
+            let (from, to) = grid.pair_range(axis, first);
+            let in_window = |x: f32| x >= from && x < to;
             let mut len = 0;
             for r in refs {
                 let (lo, hi) = (r.lo[axis], r.hi[axis]);
                 let planar = lo == hi;
                 room[len].write((lo, if planar { PLANAR } else { START }));
-                len += grid.in_pair(lo, axis, first) as usize;
+                len += in_window(lo) as usize;
                 room[len].write((hi, END));
-                len += (grid.in_pair(hi, axis, first) & !planar) as usize;
+                len += (in_window(hi) & !planar) as usize;
             }
             // SAFETY: the first `len` entries of the spare room were written above.
             unsafe { ev.set_len(len) };

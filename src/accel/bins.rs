@@ -56,11 +56,50 @@ impl Grid {
     }
 
     /// Whether `x` falls in bin `first` or `first + 1` of `axis`, by comparing its position
-    /// (cheaper than converting it to an index).
-    #[inline]
+    /// (cheaper than converting it to an index); the rule `pair_range` is held to.
+    #[cfg(test)]
     pub fn in_pair(&self, x: f32, axis: usize, first: usize) -> bool {
         let b = self.position(x, axis);
         b >= first as f32 && b < (first + 2) as f32
+    }
+
+    /// The coordinates of `axis` in bins `first` and `first + 1`, as a half-open range
+    /// `[from, to)`: a finite `x` is in it exactly when `in_pair(x, axis, first)`. Two
+    /// comparisons a coordinate instead of the bin rule's four operations and two comparisons
+    /// (the refinement tests both bounds of every reference of a node).
+    pub fn pair_range(&self, axis: usize, first: usize) -> (f32, f32) {
+        let from = if first == 0 {
+            f32::NEG_INFINITY
+        } else {
+            self.bin_start(axis, first)
+        };
+        let to = if first + 2 >= self.count {
+            f32::INFINITY
+        } else {
+            self.bin_start(axis, first + 2)
+        };
+        (from, to)
+    }
+
+    /// The smallest coordinate of `axis` in bin `k` or above, for `k` in `1..count`. The bin
+    /// rule is monotone in `x` (a subtraction and a multiplication by a positive constant, each
+    /// rounded, then a clamp), so the exact boundary is found from the unrounded one by stepping
+    /// a few ulps. Both loops end: minus infinity bins to 0 and plus infinity to the last bin
+    /// (on an axis that has extent).
+    fn bin_start(&self, axis: usize, k: usize) -> f32 {
+        if self.inv_width[axis] == 0.0 {
+            // A flat axis bins everything to 0.
+            return f32::INFINITY;
+        }
+        let k = k as f32;
+        let mut x = self.origin[axis] + k * (self.extent[axis] / self.count as f32);
+        while self.position(x, axis) >= k {
+            x = x.next_down();
+        }
+        while self.position(x, axis) < k {
+            x = x.next_up();
+        }
+        x
     }
 
     /// The bins of a point's three coordinates (lane 3 is unused), each in `0..count` whatever
@@ -260,6 +299,10 @@ mod tests {
                         expected,
                         "{x}, {axis}, {first}"
                     );
+                    let (from, to) = grid.pair_range(axis, first);
+                    if x.is_finite() {
+                        assert_eq!(x >= from && x < to, expected, "{x}, {axis}, {first}");
+                    }
                 }
             }
         }
