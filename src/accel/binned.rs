@@ -27,7 +27,7 @@ use super::bins::{BIN_STORE, Bins, Grid, Ref};
 use super::flat::Flat;
 use super::lanes::{F4, M4};
 use super::params::BuildParams;
-use super::plane_cost::AxisCost;
+use super::plane_cost::{AxesCost, AxisCost};
 use super::small_split::{EXACT_MAX, exact_split};
 use super::spare::{CHUNK_CAPACITY, give, give_chunk, take, take_chunk};
 use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, keep, share};
@@ -241,15 +241,12 @@ impl Ctx<'_> {
             b
         };
         let mut best = None;
+        let costs = AxisCost::per_axis(self.params, node_box);
         // Per axis, the boundary index of its cheapest plane (the first of equal ones), kept
         // as the node's best in axis order: the first cheapest boundary in visiting order.
-        let mut axis_best = [None::<(f32, usize)>; 3];
-        let costs = AxisCost::per_axis(self.params, node_box);
-        for (axis, axis_best) in axis_best.iter_mut().enumerate() {
-            if grid.extent[axis] <= 0.0 {
-                continue;
-            }
-            *axis_best = counts.cheapest_boundary(axis, &grid, node_box, &costs[axis], n as u32);
+        let axis_best =
+            counts.cheapest_boundaries(&grid, node_box, &AxesCost::new(&costs), n as u32);
+        for (axis, axis_best) in axis_best.iter().enumerate() {
             if let Some((c, k)) = *axis_best {
                 let pos = grid.origin[axis] + k as f32 * (grid.extent[axis] / grid.count as f32);
                 keep(&mut best, c, axis, pos, false);
@@ -301,8 +298,7 @@ impl Ctx<'_> {
             // SAFETY: the first `len` entries of the spare room were written above.
             unsafe { ev.set_len(len) };
             ev.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-            let started: u32 = counts.lo(axis)[..first].iter().sum();
-            let ended: u32 = counts.hi(axis)[..first].iter().sum();
+            let (started, ended) = counts.before(axis, first);
             sweep(
                 ev,
                 (started, refs.len() as u32 - ended),

@@ -4,7 +4,7 @@
 
 use super::aabb::Aabb;
 use super::lanes::F4;
-use super::plane_cost::AxisCost;
+use super::plane_cost::AxesCost;
 use std::cell::RefCell;
 
 /// The part of one triangle inside the current node, by its bounds (arrays, not `Vec3`, so the
@@ -23,7 +23,7 @@ pub(super) struct Grid {
     pub extent: [f32; 3],
     inv_width: [f32; 3],
     /// `origin`, `inv_width` and the last bin as lanes (the fourth lane bins a zero to bin 0).
-    origin4: F4,
+    pub origin4: F4,
     inv_width4: F4,
     last4: F4,
 }
@@ -130,11 +130,20 @@ impl Bins {
         Bins { count, counts }
     }
 
-    pub fn lo(&self, axis: usize) -> &[u32] {
+    /// References of `axis` whose lower bound lies in a bin before `first`, and whose upper
+    /// bound does.
+    pub fn before(&self, axis: usize, first: usize) -> (u32, u32) {
+        (
+            self.lo(axis)[..first].iter().sum(),
+            self.hi(axis)[..first].iter().sum(),
+        )
+    }
+
+    fn lo(&self, axis: usize) -> &[u32] {
         &self.counts[2 * axis * self.count..][..self.count]
     }
 
-    pub fn hi(&self, axis: usize) -> &[u32] {
+    fn hi(&self, axis: usize) -> &[u32] {
         &self.counts[(2 * axis + 1) * self.count..][..self.count]
     }
 
@@ -158,56 +167,55 @@ impl Bins {
         }
     }
 
-    /// The cheapest bin boundary of `axis` strictly inside the node, as (cost, boundary index
-    /// `k` in `1..count`), the first of equally cheap ones; `n` references counted. Four
-    /// boundaries a step: the running counts are scalar, the costs `AxisCost::cost4`, and each
-    /// lane keeps its first cheapest, the lowest index winning ties between lanes.
-    pub fn cheapest_boundary(
+    /// Per axis, the cheapest bin boundary strictly inside the node, as (cost, boundary index
+    /// `k` in `1..count`), the first of equally cheap ones; `n` references counted. The three
+    /// axes are three lanes of one sweep over the boundaries, each lane computing what
+    /// `AxisCost::cost` computes for its axis (four boundaries of one axis a step, with scalar
+    /// running counts and a reduction across lanes per axis, took an eighth of the build).
+    pub fn cheapest_boundaries(
         &self,
-        axis: usize,
         grid: &Grid,
         node_box: &Aabb,
-        cost: &AxisCost,
+        cost: &AxesCost,
         n: u32,
-    ) -> Option<(f32, usize)> {
-        let (lo, hi) = (self.lo(axis), self.hi(axis));
-        let width = F4::splat(grid.extent[axis] / self.count as f32);
-        let (origin, min, max) = (
-            F4::splat(grid.origin[axis]),
-            F4::splat(node_box.min[axis]),
-            F4::splat(node_box.max[axis]),
+    ) -> [Option<(f32, usize)>; 3] {
+        let c = self.count;
+        let (lo, hi) = (
+            [self.lo(0), self.lo(1), self.lo(2)],
+            [self.hi(0), self.hi(1), self.hi(2)],
         );
+        let width = F4::xyz(grid.extent).div(F4::splat(c as f32));
+        let (min, max) = (
+            F4::xyz(node_box.min.to_array()),
+            F4::xyz(node_box.max.to_array()),
+        );
+        let axes = F4::new([0.0, 1.0, 2.0, 3.0]).lt(F4::splat(3.0));
         let (mut best, mut best_k) = (F4::splat(f32::INFINITY), F4::splat(0.0));
-        let (mut started, mut ended) = (0u32, 0u32);
-        for first in (1..self.count).step_by(4) {
-            let (mut below, mut above, mut k) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-            for lane in 0..4 {
-                if first + lane < self.count {
-                    started += lo[first + lane - 1];
-                    ended += hi[first + lane - 1];
-                }
-                (below[lane], above[lane]) = (started as f32, (n - ended) as f32);
-                k[lane] = (first + lane) as f32;
+        let (mut started, mut ended) = ([0u32; 3], [0u32; 3]);
+        for k in 1..c {
+            for a in 0..3 {
+                started[a] += lo[a][k - 1];
+                ended[a] += hi[a][k - 1];
             }
-            let k = F4::new(k);
-            let l = k.mul(width);
-            let pos = origin.add(l);
-            let real = k.lt(F4::splat(self.count as f32));
-            let inside = pos.gt(min).and(pos.lt(max)).and(real);
-            let c = cost.cost4(l, F4::new(below), F4::new(above));
-            let better = inside.and(c.lt(best));
-            best = F4::select(better, c, best);
-            best_k = F4::select(better, k, best_k);
+            let below = F4::new([started[0] as f32, started[1] as f32, started[2] as f32, 1.0]);
+            let above = F4::new([
+                (n - ended[0]) as f32,
+                (n - ended[1]) as f32,
+                (n - ended[2]) as f32,
+                1.0,
+            ]);
+            let kf = F4::splat(k as f32);
+            let l = kf.mul(width);
+            let pos = grid.origin4.add(l);
+            let inside = pos.gt(min).and(pos.lt(max)).and(axes);
+            let cost = cost.cost(l, below, above);
+            let better = inside.and(cost.lt(best));
+            best = F4::select(better, cost, best);
+            best_k = F4::select(better, kf, best_k);
         }
         let (best, best_k) = (best.to_array(), best_k.to_array());
-        (0..4)
-            .filter(|&lane| best[lane] < f32::INFINITY)
-            .min_by(|&a, &b| {
-                best[a]
-                    .total_cmp(&best[b])
-                    .then(best_k[a].total_cmp(&best_k[b]))
-            })
-            .map(|lane| (best[lane], best_k[lane] as usize))
+        let axis = |a: usize| (best[a] < f32::INFINITY).then(|| (best[a], best_k[a] as usize));
+        [axis(0), axis(1), axis(2)]
     }
 
     pub fn merge(mut self, o: Bins) -> Bins {
@@ -221,10 +229,12 @@ impl Bins {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::plane_cost::AxisCost;
     use glam::Vec3;
 
-    /// The four-lane boundary search picks what a scalar sweep over the boundaries picks: the
-    /// first of the cheapest, with ties made likely by counts on a few values and flat boxes.
+    /// The three-axis boundary search picks what a scalar sweep over each axis's boundaries
+    /// picks: the first of the cheapest, with ties made likely by counts on a few values and
+    /// flat boxes.
     #[test]
     fn lanes_pick_the_scalar_sweeps_boundary() {
         let params = crate::accel::BuildParams::default();
@@ -241,18 +251,20 @@ mod tests {
             };
             let grid = Grid::new(&node, count);
             let mut bins = Bins::with_storage(count, Vec::new());
-            // Lower bounds counted no later than upper ones, as references would be.
+            // Lower bounds counted no later than upper ones, as references would be, and every
+            // reference on every axis.
+            let n = (rng.next() * 40.0) as u32;
             for axis in 0..3 {
-                for _ in 0..(rng.next() * 40.0) as usize {
+                for _ in 0..n {
                     let a = (rng.next() * count as f32) as usize % count;
                     let b = a + (rng.next() * (count - a) as f32) as usize % (count - a);
                     bins.counts[2 * axis * count + a] += 1;
                     bins.counts[(2 * axis + 1) * count + b] += 1;
                 }
             }
-            for axis in 0..3 {
-                let n: u32 = bins.lo(axis).iter().sum();
-                let cost = AxisCost::per_axis(&params, &node)[axis];
+            let costs = AxisCost::per_axis(&params, &node);
+            let got = bins.cheapest_boundaries(&grid, &node, &AxesCost::new(&costs), n);
+            for (axis, cost) in costs.iter().enumerate() {
                 let width = grid.extent[axis] / count as f32;
                 let (mut started, mut ended, mut want) = (0, 0, None::<(f32, usize)>);
                 for k in 1..count {
@@ -267,10 +279,9 @@ mod tests {
                         }
                     }
                 }
-                let got = bins.cheapest_boundary(axis, &grid, &node, &cost, n);
                 assert_eq!(
                     want.map(|(c, k)| (c.to_bits(), k)),
-                    got.map(|(c, k)| (c.to_bits(), k)),
+                    got[axis].map(|(c, k)| (c.to_bits(), k)),
                     "case {case}, axis {axis}"
                 );
             }
