@@ -3,6 +3,8 @@
 //! kept aside until the end, where one pass lays the whole tree out.
 
 use super::tree::Node;
+use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// A tree, or a subtree built on a task of its own, as written so far.
 pub(super) struct Flat {
@@ -98,31 +100,78 @@ impl Flat {
     }
 
     /// The whole tree's nodes and references, each copied once (not at all when no subtree was
-    /// built apart).
+    /// built apart). Every part's place is known from the counts, so the parts are copied on all
+    /// threads: copied on one, the 1M peer mesh's 9 MB of nodes and 9 MB of references took
+    /// 10-46 ms of a 0.37-0.50 s two-thread build.
     pub(super) fn into_arrays(self) -> (Vec<Node>, Vec<u32>) {
         if self.spliced.is_empty() {
             return (self.nodes, self.refs);
         }
-        let mut nodes = Vec::with_capacity(self.node_count());
-        let mut refs = Vec::with_capacity(self.ref_count());
-        self.lay_out(&mut nodes, &mut refs);
+        let (node_count, ref_count) = (self.node_count(), self.ref_count());
+        let mut nodes = Vec::with_capacity(node_count);
+        let mut refs = Vec::with_capacity(ref_count);
+        self.lay_out(
+            &mut nodes.spare_capacity_mut()[..node_count],
+            &mut refs.spare_capacity_mut()[..ref_count],
+            0,
+        );
+        // SAFETY: `lay_out` wrote every node and reference: a part's own arrays and its
+        // spliced parts together fill exactly its counts.
+        unsafe {
+            nodes.set_len(node_count);
+            refs.set_len(ref_count);
+        }
         (nodes, refs)
     }
 
-    fn lay_out(self, nodes: &mut Vec<Node>, refs: &mut Vec<u32>) {
-        let base = refs.len() as u32;
+    /// Writes this part into `nodes` and `refs` (exactly its counts) with its first reference
+    /// at `base` of the whole array: its own runs here, its spliced parts on other rayon tasks.
+    /// A leaf's first reference is counted from the start of its part (see `leaf`), so every
+    /// own leaf moves by `base`.
+    fn lay_out(self, nodes: &mut [MaybeUninit<Node>], refs: &mut [MaybeUninit<u32>], base: u32) {
+        let (mut nodes, mut refs) = (nodes, refs);
+        // This part's references laid out so far, spliced parts' included.
+        let mut written = 0;
         let (mut node_from, mut ref_from) = (0, 0);
+        let mut parts = Vec::with_capacity(self.spliced.len());
         for s in self.spliced {
-            let written = &self.nodes[node_from..s.at_node];
-            nodes.extend(written.iter().map(|n| n.with_refs_from(base)));
-            refs.extend_from_slice(&self.refs[ref_from..s.at_ref]);
-            s.part.lay_out(nodes, refs);
+            let own = (
+                &self.nodes[node_from..s.at_node],
+                &self.refs[ref_from..s.at_ref],
+            );
+            let (here_nodes, rest_nodes) = nodes.split_at_mut(own.0.len());
+            let (here_refs, rest_refs) = refs.split_at_mut(own.1.len());
+            copy_run(own, here_nodes, here_refs, base);
+            written += own.1.len();
+            let (part_nodes, rest_nodes) = rest_nodes.split_at_mut(s.part.node_count());
+            let (part_refs, rest_refs) = rest_refs.split_at_mut(s.part.ref_count());
+            let part_base = base + written as u32;
+            written += s.part.ref_count();
+            parts.push((s.part, part_nodes, part_refs, part_base));
+            (nodes, refs) = (rest_nodes, rest_refs);
             (node_from, ref_from) = (s.at_node, s.at_ref);
         }
-        let rest = &self.nodes[node_from..];
-        nodes.extend(rest.iter().map(|n| n.with_refs_from(base)));
-        refs.extend_from_slice(&self.refs[ref_from..]);
+        let own = (&self.nodes[node_from..], &self.refs[ref_from..]);
+        copy_run(own, nodes, refs, base);
+        parts
+            .into_par_iter()
+            .for_each(|(part, nodes, refs, base)| part.lay_out(nodes, refs, base));
     }
+}
+
+/// Copies a run of a part's own nodes and references, moving its leaves' references by `base`.
+fn copy_run(
+    (from_nodes, from_refs): (&[Node], &[u32]),
+    nodes: &mut [MaybeUninit<Node>],
+    refs: &mut [MaybeUninit<u32>],
+    base: u32,
+) {
+    // `into_arrays` relies on every slot being written.
+    assert_eq!(nodes.len(), from_nodes.len());
+    for (to, n) in nodes.iter_mut().zip(from_nodes) {
+        to.write(n.with_refs_from(base));
+    }
+    refs.write_copy_of_slice(from_refs);
 }
 
 #[cfg(test)]
