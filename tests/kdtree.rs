@@ -414,3 +414,43 @@ fn larger_meshes_get_larger_traversal_costs_and_the_fast_build_keeps_its_bounds(
     let tree = KdTree::build(small, BuildParams::default());
     assert_eq!(tree.params.traversal_cost, 25.0);
 }
+
+/// Triangles with a NaN or infinite vertex, scattered through a mesh larger than one chunk of the
+/// parallel build, change no hit: every build finds what testing the finite triangles alone
+/// finds, and numbers its hits by the input order.
+#[test]
+fn non_finite_triangles_are_left_out_of_every_build() {
+    let mut rng = Rng(23);
+    let mut tris: Vec<[Vec3; 3]> = (0..20_000)
+        .map(|_| {
+            let c = rng.v() * 50.0;
+            [c, c + rng.v() - 0.5, c + rng.v() - 0.5]
+        })
+        .collect();
+    let rays = rays_through(&tris, 1000, &mut rng);
+    let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+    for (k, i) in (0..tris.len()).step_by(997).enumerate() {
+        tris[i][k % 3][k % 2] = bad[k % 3];
+    }
+    let kept: Vec<[Vec3; 3]> = tris
+        .iter()
+        .filter(|t| t.iter().all(|v| v.is_finite()))
+        .copied()
+        .collect();
+    assert!(kept.len() < tris.len() - 15);
+    let brute = BruteForce { triangles: kept };
+    for method in METHODS {
+        let tree = KdTree::build(tris.clone(), BuildParams::with_method(method));
+        for r in &rays {
+            let got = tree.closest_hit(r, f32::INFINITY);
+            let want = brute.closest_hit(r, f32::INFINITY).map(|h| h.t);
+            assert_eq!(got.map(|h| h.t), want, "{method:?}: {r:?}");
+            if let Some(h) = got {
+                let single = BruteForce {
+                    triangles: vec![tris[h.prim as usize]],
+                };
+                assert_eq!(single.closest_hit(r, f32::INFINITY).map(|x| x.t), Some(h.t));
+            }
+        }
+    }
+}
