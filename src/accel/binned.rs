@@ -133,6 +133,26 @@ struct Ctx<'a> {
     parallel_above: usize,
 }
 
+/// A child's reference list as the partition appends to it: `extend` with one reference was
+/// a call per reference into `SmallVec`'s out-of-line `extend`.
+trait RefList {
+    fn push_ref(&mut self, r: Ref);
+}
+
+impl RefList for Vec<Ref> {
+    #[inline(always)]
+    fn push_ref(&mut self, r: Ref) {
+        self.push(r);
+    }
+}
+
+impl RefList for SmallVec<[Ref; EXACT_MAX]> {
+    #[inline(always)]
+    fn push_ref(&mut self, r: Ref) {
+        self.push(r);
+    }
+}
+
 /// Event kinds of the refinement sweep, in the order events at one position are swept (as in
 /// `sah.rs`): references ending there are below the plane before those starting there count above.
 const END: u8 = 0;
@@ -358,26 +378,30 @@ impl Ctx<'_> {
         &self,
         refs: &[Ref],
         s: &Split,
-        below: &mut impl Extend<Ref>,
-        above: &mut impl Extend<Ref>,
+        below: &mut impl RefList,
+        above: &mut impl RefList,
     ) {
         let (axis, pos) = (s.axis, s.pos);
         for r in refs {
             let (lo, hi) = (r.lo[axis], r.hi[axis]);
             if lo == pos && hi == pos {
                 if s.planar_below {
-                    below.extend([*r]);
+                    below.push_ref(*r);
                 } else {
-                    above.extend([*r]);
+                    above.push_ref(*r);
                 }
             } else if hi <= pos {
-                below.extend([*r]);
+                below.push_ref(*r);
             } else if lo >= pos {
-                above.extend([*r]);
+                above.push_ref(*r);
             } else {
                 let [b, a] = split_straddler(&self.triangles[r.prim as usize], r, axis, pos);
-                below.extend(b);
-                above.extend(a);
+                if let Some(b) = b {
+                    below.push_ref(b);
+                }
+                if let Some(a) = a {
+                    above.push_ref(a);
+                }
             }
         }
     }
