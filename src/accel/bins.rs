@@ -83,23 +83,19 @@ impl Grid {
 
     /// The smallest coordinate of `axis` in bin `k` or above, for `k` in `1..count`. The bin
     /// rule is monotone in `x` (a subtraction and a multiplication by a positive constant, each
-    /// rounded, then a clamp), so the exact boundary is found from the unrounded one by stepping
-    /// a few ulps. Both loops end: minus infinity bins to 0 and plus infinity to the last bin
-    /// (on an axis that has extent).
+    /// rounded, then a clamp), so the boundary is searched for among the floats in their order:
+    /// from the unrounded boundary, steps doubling until they pass it, then halving. Near zero
+    /// the floats are so dense that the rounding's few bin widths are billions of floats: one
+    /// float a step took seconds a node there (MetalRoughSpheres' 1M triangles: 23 s a build).
     fn bin_start(&self, axis: usize, k: usize) -> f32 {
         if self.inv_width[axis] == 0.0 {
             // A flat axis bins everything to 0.
             return f32::INFINITY;
         }
         let k = k as f32;
-        let mut x = self.origin[axis] + k * (self.extent[axis] / self.count as f32);
-        while self.position(x, axis) >= k {
-            x = x.next_down();
-        }
-        while self.position(x, axis) < k {
-            x = x.next_up();
-        }
-        x
+        let guess = self.origin[axis] + k * (self.extent[axis] / self.count as f32);
+        let reaches = |key: u32| self.position(from_order(key), axis) >= k;
+        from_order(first_reaching(reaches, to_order(guess)))
     }
 
     /// The bins of a point's three coordinates (lane 3 is unused), each in `0..count` whatever
@@ -109,6 +105,66 @@ impl Grid {
         let b = F4::xyz(*p).sub(self.origin4).mul(self.inv_width4);
         b.clamp(F4::splat(0.0), self.last4).trunc_i32()
     }
+}
+
+/// A float's place in the order of all floats but NaN, as an integer (minus zero just below
+/// plus zero).
+fn to_order(x: f32) -> u32 {
+    let bits = x.to_bits();
+    if bits >> 31 == 1 {
+        !bits
+    } else {
+        bits | 1 << 31
+    }
+}
+
+/// The float at a place of `to_order`.
+fn from_order(key: u32) -> f32 {
+    f32::from_bits(if key >> 31 == 1 {
+        key & !(1 << 31)
+    } else {
+        !key
+    })
+}
+
+/// The first place in the order of floats (`to_order`) where the monotone `reaches` holds,
+/// searched from `guess`: steps doubling until they pass it, then halving, so at most about 64
+/// tests whatever the distance. Minus infinity must not reach and plus infinity must.
+fn first_reaching(reaches: impl Fn(u32) -> bool, guess: u32) -> u32 {
+    let (first, last) = (to_order(f32::NEG_INFINITY), to_order(f32::INFINITY));
+    // `below` never reaches and `above` does.
+    let (mut below, mut above);
+    let mut step = 1u32;
+    if reaches(guess) {
+        above = guess;
+        loop {
+            below = above.saturating_sub(step).max(first);
+            if !reaches(below) {
+                break;
+            }
+            above = below;
+            step = step.saturating_mul(2);
+        }
+    } else {
+        below = guess;
+        loop {
+            above = below.saturating_add(step).min(last);
+            if reaches(above) {
+                break;
+            }
+            below = above;
+            step = step.saturating_mul(2);
+        }
+    }
+    while above - below > 1 {
+        let middle = below + (above - below) / 2;
+        if reaches(middle) {
+            above = middle;
+        } else {
+            below = middle;
+        }
+    }
+    above
 }
 
 /// Per-axis counts of references by the bin of their lower bound and of their upper bound.
@@ -288,31 +344,66 @@ mod tests {
         }
     }
 
+    /// The boundary search finds the first float at or past a threshold in a few dozen tests
+    /// wherever the guess lies, across zero and the subnormals too.
+    #[test]
+    fn the_boundary_is_found_in_a_few_dozen_tests() {
+        let thresholds = [0.0, -0.0, 1e-45, -1e-40, 1e-30, 3.5, -7e20, f32::MAX];
+        let guesses = [0.0, 1e-3, -1e-3, 1e-38, 2.0, -5e30, f32::MIN, f32::MAX];
+        for t in thresholds {
+            for g in guesses {
+                let tests = std::cell::Cell::new(0);
+                let reaches = |key: u32| {
+                    tests.set(tests.get() + 1);
+                    from_order(key) >= t
+                };
+                let found = from_order(first_reaching(reaches, to_order(g)));
+                assert!(found >= t && found.next_down() < t, "{t} from {g}: {found}");
+                assert!(tests.get() <= 66, "{t} from {g}: {} tests", tests.get());
+            }
+        }
+    }
+
     /// Counting and refinement must put every coordinate in the same bin, or the refined sweep
     /// would start from counts that disagree with its window.
     #[test]
     fn counting_and_refinement_bin_alike() {
-        let node = Aabb {
-            min: Vec3::new(-1.0, 0.25, 3.0),
-            max: Vec3::new(2.0, 0.25, 7.5),
-        };
-        let grid = Grid::new(&node, 37);
-        let mut xs = vec![-5.0, -1.0, 0.25, 2.0, 3.0, 7.5, 9.0, f32::NAN];
-        xs.extend((0..2000).map(|i| -1.5 + i as f32 * 0.0047));
-        for &x in &xs {
-            let bins = grid.bins3(&[x, x, x]);
-            for (axis, &bin) in bins[..3].iter().enumerate() {
-                assert!((0..37).contains(&bin), "{x} on {axis}: bin {bin}");
-                for first in 0..36 {
-                    let expected = bin as usize == first || bin as usize == first + 1;
-                    assert_eq!(
-                        grid.in_pair(x, axis, first),
-                        expected,
-                        "{x}, {axis}, {first}"
-                    );
-                    let (from, to) = grid.pair_range(axis, first);
-                    if x.is_finite() {
-                        assert_eq!(x >= from && x < to, expected, "{x}, {axis}, {first}");
+        // An ordinary node, and one around zero (where floats are densest and bin boundaries
+        // lie billions of floats from their unrounded place) with a subnormal-wide axis.
+        let nodes = [
+            (Vec3::new(-1.0, 0.25, 3.0), Vec3::new(2.0, 0.25, 7.5)),
+            (
+                Vec3::new(-1e-3, -3e-7, -1e-40),
+                Vec3::new(2e-3, 5e-7, 1e-40),
+            ),
+        ];
+        for (min, max) in nodes {
+            let node = Aabb { min, max };
+            let grid = Grid::new(&node, 37);
+            let mut xs = vec![-5.0, -1.0, 0.25, 2.0, 3.0, 7.5, 9.0, f32::NAN];
+            xs.extend([
+                0.0, -0.0, 1e-45, -1e-45, 1e-38, -1e-38, 1e-20, -1e-20, 1e-40,
+            ]);
+            for axis in 0..3 {
+                let (lo, hi) = (min[axis], max[axis]);
+                xs.extend((0..700).map(|i| lo + (hi - lo) * (i as f32 / 600.0 - 0.1)));
+            }
+            xs.extend((0..2000).map(|i| -1.5 + i as f32 * 0.0047));
+            for &x in &xs {
+                let bins = grid.bins3(&[x, x, x]);
+                for (axis, &bin) in bins[..3].iter().enumerate() {
+                    assert!((0..37).contains(&bin), "{x} on {axis}: bin {bin}");
+                    for first in 0..36 {
+                        let expected = bin as usize == first || bin as usize == first + 1;
+                        assert_eq!(
+                            grid.in_pair(x, axis, first),
+                            expected,
+                            "{x}, {axis}, {first}"
+                        );
+                        let (from, to) = grid.pair_range(axis, first);
+                        if x.is_finite() {
+                            assert_eq!(x >= from && x < to, expected, "{x}, {axis}, {first}");
+                        }
                     }
                 }
             }
