@@ -6,8 +6,9 @@
 //! - **Min-max binning** (Shevtsov et al. 2007; Mitsuba 0.6's `gkdtree.h`): a node's references
 //!   are counted into bins on each axis by the bin of their lower and of their upper bound; one
 //!   prefix sweep gives, for every bin boundary, the references reaching below and above it. O(N)
-//!   per node, no allocation. The best boundary is refined by an exact sweep over the few
-//!   reference bounds in the two bins beside it.
+//!   per node, no allocation. The three axes' boundaries are costed as three lanes of one sweep.
+//!   The best boundary is refined by an exact sweep over the few reference bounds in the two
+//!   bins beside it, found by comparing each bound with the two bins' coordinate range.
 //! - **Exact search in small nodes** (`small_split.rs`): below `EXACT_MAX` references every
 //!   reference bound is a candidate, counted by brute force in four lanes (cheaper than binning
 //!   there, and as good as the sweep).
