@@ -481,24 +481,31 @@ fn split_straddler(tri: &[Vec3; 3], r: &Ref, axis: usize, pos: f32) -> [Option<R
         let x = F4::select(on_axis, pos4, p.add(q.sub(p).mul(F4::splat(t[i]))));
         add(x, crossing, crossing);
     }
-    let (r_lo, r_hi) = (F4::xyz(r.lo), F4::xyz(r.hi));
-    let side = |side: usize| {
-        let (mut c_lo, mut c_hi) = (r_lo.max(lo[side]), r_hi.min(hi[side]));
-        if side == 0 {
-            c_hi = F4::select(on_axis, c_hi.min(pos4), c_hi);
-        } else {
-            c_lo = F4::select(on_axis, c_lo.max(pos4), c_lo);
+    // Written out: an array `map` here is not always inlined.
+    [
+        cut_side(r, (lo[0], hi[0]), true, on_axis, pos4),
+        cut_side(r, (lo[1], hi[1]), false, on_axis, pos4),
+    ]
+}
+
+/// One side of a cut reference: the bounds gathered on that side (`lo`, `hi`), intersected
+/// with the reference's bounds and the side's half-space of the plane `pos4` on the axis lane
+/// `on_axis`; `None` when nothing of the triangle lies there inside the node.
+fn cut_side(r: &Ref, (lo, hi): (F4, F4), below: bool, on_axis: M4, pos4: F4) -> Option<Ref> {
+    let (mut c_lo, mut c_hi) = (F4::xyz(r.lo).max(lo), F4::xyz(r.hi).min(hi));
+    if below {
+        c_hi = F4::select(on_axis, c_hi.min(pos4), c_hi);
+    } else {
+        c_lo = F4::select(on_axis, c_lo.max(pos4), c_lo);
+    }
+    (c_lo.le(c_hi).bits() & 0b111 == 0b111).then(|| {
+        let (l, h) = (c_lo.to_array(), c_hi.to_array());
+        Ref {
+            lo: [l[0], l[1], l[2]],
+            hi: [h[0], h[1], h[2]],
+            prim: r.prim,
         }
-        (c_lo.le(c_hi).bits() & 0b111 == 0b111).then(|| {
-            let (l, h) = (c_lo.to_array(), c_hi.to_array());
-            Ref {
-                lo: [l[0], l[1], l[2]],
-                hi: [h[0], h[1], h[2]],
-                prim: r.prim,
-            }
-        })
-    };
-    [side(0), side(1)]
+    })
 }
 
 #[cfg(test)]
@@ -535,23 +542,7 @@ mod tests {
                 );
             }
         }
-        let (r_lo, r_hi) = (F4::xyz(r.lo), F4::xyz(r.hi));
-        [0, 1].map(|side| {
-            let (mut c_lo, mut c_hi) = (r_lo.max(lo[side]), r_hi.min(hi[side]));
-            if side == 0 {
-                c_hi = F4::select(on_axis, c_hi.min(pos4), c_hi);
-            } else {
-                c_lo = F4::select(on_axis, c_lo.max(pos4), c_lo);
-            }
-            (c_lo.le(c_hi).bits() & 0b111 == 0b111).then(|| {
-                let (l, h) = (c_lo.to_array(), c_hi.to_array());
-                Ref {
-                    lo: [l[0], l[1], l[2]],
-                    hi: [h[0], h[1], h[2]],
-                    prim: r.prim,
-                }
-            })
-        })
+        [0, 1].map(|side| cut_side(r, (lo[side], hi[side]), side == 0, on_axis, pos4))
     }
 
     /// The select-based split gives the branchy one's bounds bit for bit, on triangles with
