@@ -351,7 +351,17 @@ mod tests {
     #[test]
     fn the_boundary_is_found_in_a_few_dozen_tests() {
         let thresholds = [0.0, -0.0, 1e-45, -1e-40, 1e-30, 3.5, -7e20, f32::MAX];
-        let guesses = [0.0, 1e-3, -1e-3, 1e-38, 2.0, -5e30, f32::MIN, f32::MAX, f32::NAN];
+        let guesses = [
+            0.0,
+            1e-3,
+            -1e-3,
+            1e-38,
+            2.0,
+            -5e30,
+            f32::MIN,
+            f32::MAX,
+            f32::NAN,
+        ];
         for t in thresholds {
             for g in guesses {
                 let tests = std::cell::Cell::new(0);
