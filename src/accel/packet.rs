@@ -131,25 +131,6 @@ impl<L: Lanes<N>, const N: usize> PacketRays<L, N> {
     }
 }
 
-/// Walks `rays` run by run (`group`, packets of up to `N`): `walk(run)` gives the hits of the
-/// run's rays in order (a single ray's in the first slot), and `out(i, hit)` receives each ray's.
-#[inline(always)]
-pub(super) fn for_each_hit<const N: usize>(
-    rays: &[Ray],
-    mut walk: impl FnMut(Run) -> [Option<Hit>; N],
-    mut out: impl FnMut(usize, Option<Hit>),
-) {
-    for run in group(rays, N) {
-        let (start, end) = match run {
-            Run::Single(i) => (i, i + 1),
-            Run::Packet(a, b, _) => (a, b),
-        };
-        for (k, h) in walk(run).into_iter().take(end - start).enumerate() {
-            out(start + k, h);
-        }
-    }
-}
-
 /// The packet's mailbox: the last triangles tested, hashed by index as the single-ray mailbox
 /// is, each with the lanes that tested it. A lane skips a triangle it tested already; testing
 /// one again could not change its result anyway (a miss within a limit misses within any

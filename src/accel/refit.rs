@@ -14,7 +14,10 @@
 
 use super::aabb::Aabb;
 use super::box_node::{self, BoxNode, Child};
-use super::packet::{Run, for_each_hit};
+use super::lanes::{F4, Lanes};
+#[cfg(target_arch = "x86_64")]
+use super::lanes8::F8;
+use super::packet::{LANES, Run, WIDE_LANES, group};
 use super::params::BuildParams;
 use super::traverse::{LeafWalk, NoTally, Visit, WalkRay, any_hit, closest_hit, walk_one};
 use super::tree::{KdTree, MAX_DEPTH};
@@ -182,7 +185,8 @@ impl RefitTree {
     }
 
     /// Walks `rays` in packets where consecutive rays share an octant, singly elsewhere;
-    /// `out(i, hit)`.
+    /// `out(i, hit)`. Packets are eight rays wide where the CPU has AVX, four otherwise, as the
+    /// kd-tree's are (`KdTree::packet_lanes`).
     fn batch<const ANY: bool>(
         &self,
         rays: &[Ray],
@@ -190,14 +194,50 @@ impl RefitTree {
         out: impl FnMut(usize, Option<Hit>),
     ) {
         assert_eq!(rays.len(), t_max.len(), "one limit per ray");
-        let walk = |run| match run {
-            Run::Single(i) => {
-                let hit = walk_one::<ANY>(self, &rays[i], t_max[i], &mut NoTally);
-                [self.prim(hit), None, None, None]
+        #[cfg(target_arch = "x86_64")]
+        if self.topology.packet_lanes() == WIDE_LANES {
+            // SAFETY: `packet_lanes` gives `WIDE_LANES` only where the CPU has AVX.
+            return unsafe { self.batch_avx::<ANY>(rays, t_max, out) };
+        }
+        self.batch_in::<F4, LANES, ANY>(rays, t_max, out);
+    }
+
+    /// `batch` in eight AVX lanes: the walk and its lane operations inline into this function,
+    /// which alone is compiled for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn batch_avx<const ANY: bool>(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        out: impl FnMut(usize, Option<Hit>),
+    ) {
+        self.batch_in::<F8, WIDE_LANES, ANY>(rays, t_max, out);
+    }
+
+    /// `batch` in packets of `N` lanes `L`, without closures around the walk (see
+    /// `KdTree::batch_in`).
+    #[inline(always)]
+    fn batch_in<L: Lanes<N>, const N: usize, const ANY: bool>(
+        &self,
+        rays: &[Ray],
+        t_max: &[f32],
+        mut out: impl FnMut(usize, Option<Hit>),
+    ) {
+        for run in group(rays, N) {
+            match run {
+                Run::Single(i) => {
+                    let hit = walk_one::<ANY>(self, &rays[i], t_max[i], &mut NoTally);
+                    out(i, self.prim(hit));
+                }
+                Run::Packet(a, b, oct) => {
+                    let hits = self.packet_walk_boxes::<L, N, ANY>(&rays[a..b], &t_max[a..b], oct);
+                    for (k, h) in hits.into_iter().take(b - a).enumerate() {
+                        out(a + k, h);
+                    }
+                }
             }
-            Run::Packet(a, b, oct) => self.packet_walk_boxes::<ANY>(&rays[a..b], &t_max[a..b], oct),
-        };
-        for_each_hit(rays, walk, out);
+        }
     }
 }
 
@@ -225,8 +265,9 @@ mod tests {
     use super::*;
     use crate::accel::test_rng::Lcg;
 
-    /// Packets of coherent rays (a pinhole's fan, with rays of mixed octants and ray limits)
-    /// find the single walk's hits and occlusion on a refitted, deformed tree.
+    /// Packets of coherent rays (a pinhole's fan, with rays of mixed octants and ray limits),
+    /// four and eight lanes wide, find the single walk's hits and occlusion on a refitted,
+    /// deformed tree.
     #[test]
     fn packets_find_the_single_walk_hits() {
         let mut rng = Lcg(17);
@@ -256,16 +297,23 @@ mod tests {
         let t_max: Vec<f32> = (0..rays.len())
             .map(|i| if i % 5 == 0 { 9.0 } else { f32::INFINITY })
             .collect();
+        // The packets this CPU walks (eight lanes where it has AVX), and four lanes.
         let mut hits = vec![None; rays.len()];
         let mut occluded = vec![false; rays.len()];
         refit.closest_hits(&rays, &t_max, &mut hits);
         refit.any_hits(&rays, &t_max, &mut occluded);
+        let mut hits4 = vec![None; rays.len()];
+        let mut occluded4 = vec![false; rays.len()];
+        refit.batch_in::<F4, LANES, false>(&rays, &t_max, |i, h| hits4[i] = h);
+        refit.batch_in::<F4, LANES, true>(&rays, &t_max, |i, h| occluded4[i] = h.is_some());
         let mut found = 0;
         for (i, r) in rays.iter().enumerate() {
             let single = refit.closest_hit(r, t_max[i]);
             let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits()));
             assert_eq!(bits(hits[i]), bits(single), "ray {i}");
-            assert_eq!(occluded[i], refit.any_hit(r, t_max[i]), "ray {i}");
+            assert_eq!(bits(hits4[i]), bits(single), "ray {i}, four lanes");
+            let blocked = refit.any_hit(r, t_max[i]);
+            assert_eq!((occluded[i], occluded4[i]), (blocked, blocked), "ray {i}");
             found += single.is_some() as usize;
         }
         assert!(

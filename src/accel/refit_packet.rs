@@ -1,8 +1,9 @@
-//! Four rays through a refitted tree at once: the packet walk of `packet.rs` for the bounded
-//! tree's overlapping child boxes. Up to four consecutive rays whose directions share an octant
+//! Rays through a refitted tree in packets: the packet walk of `packet.rs` for the bounded
+//! tree's overlapping child boxes, in four lanes or (where the CPU has AVX) eight, as the
+//! kd-tree's packets are (`query.rs`). Consecutive rays whose directions share an octant
 //! clip each child box lane by lane, the lanes that enter a child go down it together, and the
 //! nearer child (by the octant on the node's split axis) comes first. A leaf's triangles are
-//! tested against the lanes still walking with the four-lane watertight test.
+//! tested against the lanes still walking with the packet watertight test.
 //!
 //! Each lane finds its closest hit, or whether anything blocks it, as its single-ray walk
 //! (`RefitTree::walk_boxes`) does: every box the ray enters before its best hit is visited and
@@ -12,43 +13,53 @@
 
 use super::aabb::Aabb;
 use super::box_node::Child;
-use super::lanes::F4;
-use super::packet::{LANES, PacketRays};
+use super::lanes::{LaneMask, Lanes};
+use super::packet::PacketRays;
 use super::refit::RefitTree;
 use super::tree::MAX_DEPTH;
-use super::triangle::{RayPre4, intersect_packet};
+use super::triangle::{RayPack, intersect_packet};
 use super::{Hit, Ray};
 
 /// Per lane, where the rays enter `b` (before `limit`), and the lanes of `active` that do.
 #[inline(always)]
-fn enter(rays: &PacketRays<F4, LANES>, b: &Aabb, limit: F4, active: u32) -> (F4, u32) {
+fn enter<L: Lanes<N>, const N: usize>(
+    rays: &PacketRays<L, N>,
+    b: &Aabb,
+    limit: L,
+    active: u32,
+) -> (L, u32) {
     let (t0, t1) = rays.clip(b, limit);
     (t0, active & !t0.gt(t1).bits())
 }
 
 impl RefitTree {
-    /// The walk of `rays` (2 to `LANES` rays, all in octant `oct`): per lane, the closest hit
-    /// before `t_max` (`ANY = false`) or whether anything is hit (`ANY = true`).
-    pub(super) fn packet_walk_boxes<const ANY: bool>(
+    /// The walk of `rays` (2 to `N` rays, all in octant `oct`) in lanes `L`: per lane, the
+    /// closest hit before `t_max` (`ANY = false`) or whether anything is hit (`ANY = true`).
+    #[inline(always)]
+    pub(super) fn packet_walk_boxes<L: Lanes<N>, const N: usize, const ANY: bool>(
         &self,
         rays: &[Ray],
         t_max: &[f32],
         oct: u8,
-    ) -> [Option<Hit>; LANES] {
-        let mut hits = [None; LANES];
+    ) -> [Option<Hit>; N] {
+        let mut hits = [None; N];
         let n = rays.len();
-        debug_assert!((1..=LANES).contains(&n) && t_max.len() == n);
+        debug_assert!((1..=N).contains(&n) && t_max.len() == n);
         let (nodes, refs, triangles) = self.walk_arrays();
-        let rays4 = PacketRays::<F4, LANES>::new(rays);
-        let mut best = std::array::from_fn::<f32, LANES, _>(|i| t_max[i.min(n - 1)]);
-        let mut best_v = F4::new(best);
-        let (entry, active) = enter(&rays4, &self.bounds(), best_v, (1 << n) - 1);
+        let packet = PacketRays::<L, N>::new(rays);
+        // Written out, no closures: the eight-lane walk needs every lane operation inlined.
+        let mut best = [0.0; N];
+        for (i, b) in best.iter_mut().enumerate() {
+            *b = t_max[i.min(n - 1)];
+        }
+        let mut best_v = L::new(best);
+        let (entry, active) = enter(&packet, &self.bounds(), best_v, (1 << n) - 1);
         if active == 0 {
             return hits;
         }
-        let pre = RayPre4::new(rays4.rays);
+        let pre = RayPack::<L, N>::new(packet.rays);
         // Both children can be pushed at every level: twice the depth bounds the stack.
-        let mut stack = [(Child::Inner(0), 0u32, F4::splat(0.0)); 2 * MAX_DEPTH as usize + 4];
+        let mut stack = [(Child::Inner(0), 0u32, L::splat(0.0)); 2 * MAX_DEPTH as usize + 4];
         stack[0] = (self.root(), active, entry);
         let mut sp = 1;
         while sp > 0 {
@@ -65,7 +76,7 @@ impl RefitTree {
                     for j in Child::leaf_range(start, count) {
                         let (hit, [t, b1, b2]) =
                             intersect_packet(&pre, &triangles[j], best_v, lanes);
-                        for k in (0..LANES).filter(|k| hit >> k & 1 == 1) {
+                        for k in (0..N).filter(|k| hit >> k & 1 == 1) {
                             hits[k] = Some(Hit {
                                 t: t[k],
                                 prim: refs[j],
@@ -76,15 +87,15 @@ impl RefitTree {
                             best[k] = if ANY { f32::NEG_INFINITY } else { t[k] };
                         }
                         if hit != 0 {
-                            best_v = F4::new(best);
+                            best_v = L::new(best);
                         }
                     }
                     continue;
                 }
             };
             let node = &nodes[i as usize];
-            let (below_entry, below) = enter(&rays4, &node.boxes[0], best_v, lanes);
-            let (above_entry, above) = enter(&rays4, &node.boxes[1], best_v, lanes);
+            let (below_entry, below) = enter(&packet, &node.boxes[0], best_v, lanes);
+            let (above_entry, above) = enter(&packet, &node.boxes[1], best_v, lanes);
             let below = (node.child(0), below, below_entry);
             let above = (node.child(1), above, above_entry);
             // The nearer child is popped first: the one the octant meets first on the split
