@@ -71,7 +71,7 @@ pub(super) fn build(triangles: &[[Vec3; 3]], params: &BuildParams) -> (Flat, Aab
     // two-thread build of the 1M peer mesh.
     let n = triangles.len();
     let mut refs = take(n);
-    let (chunk_bounds, all_finite) = refs.spare_capacity_mut()[..n]
+    let (bounds, all_finite) = refs.spare_capacity_mut()[..n]
         .par_chunks_mut(CHUNK)
         .zip(triangles.par_chunks(CHUNK))
         .enumerate()
@@ -102,7 +102,6 @@ pub(super) fn build(triangles: &[[Vec3; 3]], params: &BuildParams) -> (Flat, Aab
     if !all_finite {
         refs.retain(finite);
     }
-    let bounds = chunk_bounds;
     let max_depth = depth_cap(refs.len());
     // A subtree goes to another task only while there are few enough tasks to keep every thread
     // busy with room to balance (16 per thread): finer tasks only add scheduling and parts to
@@ -282,8 +281,7 @@ impl Ctx<'_> {
             counts.cheapest_boundaries(&grid, node_box, &AxesCost::new(&costs), n as u32);
         for (axis, axis_best) in axis_best.iter().enumerate() {
             if let Some((c, k)) = *axis_best {
-                let pos = grid.origin[axis] + k as f32 * (grid.extent[axis] / grid.count as f32);
-                keep(&mut best, c, axis, pos, false);
+                keep(&mut best, c, axis, grid.boundary(axis, k), false);
             }
         }
         // Refining only the axis the bins chose costs a third of refining all three and,

@@ -81,6 +81,12 @@ impl Grid {
         (from, to)
     }
 
+    /// Where boundary `k` of `axis` lies before rounding: the plane the binned search names
+    /// (the boundary sweep's lanes compute the same expression).
+    pub fn boundary(&self, axis: usize, k: usize) -> f32 {
+        self.origin[axis] + k as f32 * (self.extent[axis] / self.count as f32)
+    }
+
     /// The smallest coordinate of `axis` in bin `k` or above, for `k` in `1..count`. The bin
     /// rule is monotone in `x` (a subtraction and a multiplication by a positive constant, each
     /// rounded, then a clamp), so the boundary is searched for among the floats in their order:
@@ -92,8 +98,8 @@ impl Grid {
             // A flat axis bins everything to 0.
             return f32::INFINITY;
         }
+        let guess = self.boundary(axis, k);
         let k = k as f32;
-        let guess = self.origin[axis] + k * (self.extent[axis] / self.count as f32);
         let reaches = |key: u32| self.position(from_order(key), axis) >= k;
         from_order(first_reaching(reaches, to_order(guess)))
     }
