@@ -9,6 +9,7 @@
 //! shard (`manifest.jsonl` for a whole range), so workers on a shared file system never write
 //! the same file; reading takes the lines of every `manifest*.jsonl` in the folder.
 
+use super::tool_id::{hex, sha256_of, tool_id};
 use crate::error::{Error, Result};
 use crate::pipeline::LoadedPipeline;
 use serde::{Deserialize, Serialize};
@@ -16,7 +17,6 @@ use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 /// The manifest of a whole-range run, and the stem every shard's manifest shares.
 pub const MANIFEST: &str = "manifest.jsonl";
@@ -44,24 +44,8 @@ pub struct Entry {
     pub log: Vec<Vec<String>>,
 }
 
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 fn sha256(bytes: &[u8]) -> String {
     hex(&Sha256::digest(bytes))
-}
-
-/// The running executable's hash: a rebuilt tool may trace differently, so its frames are not
-/// taken for this one's.
-fn tool_hash() -> &'static str {
-    static HASH: OnceLock<String> = OnceLock::new();
-    HASH.get_or_init(|| {
-        std::env::current_exe()
-            .and_then(std::fs::read)
-            .map(|b| sha256(&b))
-            .unwrap_or_else(|_| "unknown".into())
-    })
 }
 
 /// What made a render's files: the pipeline after defaults (all but its thread count, which
@@ -73,12 +57,12 @@ pub fn fingerprint(p: &LoadedPipeline) -> Result<String> {
     h.update(format!(
         "stereotrace {} {}\n",
         env!("CARGO_PKG_VERSION"),
-        tool_hash()
+        tool_id()
     ));
     h.update(format!("{spec:?}\n"));
     for file in &p.scene.files {
         // A file the scene names but never reads (an unused image) may be missing.
-        let content = std::fs::read(file).map(|b| sha256(&b));
+        let content = std::fs::File::open(file).and_then(sha256_of);
         h.update(format!(
             "{}\n",
             content.unwrap_or_else(|e| format!("unreadable: {}", e.kind()))

@@ -4,8 +4,8 @@
 //! a scene that has none, `outputs` writes what each output makes of a frame, `frame_log` records
 //! each frame's figures, `memory` estimates what a render needs before it starts, `interrupt`
 //! stops cleanly on Ctrl-C, and `depth_check` reports the rig's parallax without rendering. A
-//! render farm splits the range (`shard`), records each finished frame (`manifest`) and joins the
-//! shards' work (`assemble`).
+//! render farm splits the range (`shard`), records each finished frame (`manifest`, with
+//! `tool_id` naming the executable that made it) and joins the shards' work (`assemble`).
 
 mod assemble;
 mod depth_check;
@@ -18,6 +18,7 @@ mod memory;
 mod outputs;
 mod rig_plan;
 mod shard;
+mod tool_id;
 mod trace;
 
 pub use assemble::{Assembled, assemble};
