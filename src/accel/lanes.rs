@@ -42,6 +42,10 @@ mod imp {
         pub fn div(self, o: F4) -> F4 {
             F4(unsafe { _mm_div_ps(self.0, o.0) })
         }
+        #[inline(always)]
+        pub fn sqrt(self) -> F4 {
+            F4(unsafe { _mm_sqrt_ps(self.0) })
+        }
         /// `|self|`: the sign bit cleared.
         #[inline(always)]
         pub fn abs(self) -> F4 {
@@ -173,6 +177,10 @@ mod imp {
         #[inline(always)]
         pub fn div(self, o: F4) -> F4 {
             self.zip(o, |a, b| a / b)
+        }
+        #[inline(always)]
+        pub fn sqrt(self) -> F4 {
+            F4(self.0.map(f32::sqrt))
         }
         #[inline(always)]
         pub fn abs(self) -> F4 {

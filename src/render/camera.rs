@@ -7,7 +7,7 @@
 //! because users ask to reproduce it); `mono` is the centre eye alone.
 
 use super::view::View;
-use crate::accel::Ray;
+use crate::accel::{F4, Ray};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use serde::Deserialize;
 
@@ -110,6 +110,61 @@ impl EyeCamera {
             .zfar
             .map_or(f32::INFINITY, |f| (f - self.znear).max(0.0) * len);
         (Ray::new(start, dir / len), t_max)
+    }
+
+    /// `ray` for four film points at once: lane by lane the same IEEE operations in the same
+    /// order (glam's: a matrix times a vector sums its columns first to last), so each ray and
+    /// limit is bit for bit `ray`'s, with four rays' divisions and square roots in one
+    /// instruction each (one ray at a time, camera rays were 6% of a diffuse frame).
+    pub fn rays4(&self, px: [f32; 4], py: [f32; 4]) -> ([Ray; 4], [f32; 4]) {
+        let s = F4::splat;
+        let two = s(2.0);
+        let eye_dir = [
+            two.mul(F4::new(px))
+                .div(s(self.width))
+                .sub(s(1.0))
+                .mul(s(self.tan_x))
+                .sub(s(self.shift)),
+            s(1.0)
+                .sub(two.mul(F4::new(py)).div(s(self.height)))
+                .mul(s(self.tan_y)),
+            s(-1.0),
+        ];
+        let times = |columns: [Vec3; 3], v: [F4; 3]| -> [F4; 3] {
+            std::array::from_fn(|row| {
+                let c = |i: usize| s(columns[i][row]);
+                c(0).mul(v[0]).add(c(1).mul(v[1])).add(c(2).mul(v[2]))
+            })
+        };
+        let cam_dir = times([self.toe.x_axis, self.toe.y_axis, self.toe.z_axis], eye_dir);
+        let w = &self.world;
+        let dir = times(
+            [
+                w.x_axis.truncate(),
+                w.y_axis.truncate(),
+                w.z_axis.truncate(),
+            ],
+            cam_dir,
+        );
+        let len = dir[0]
+            .mul(dir[0])
+            .add(dir[1].mul(dir[1]))
+            .add(dir[2].mul(dir[2]))
+            .sqrt();
+        let start = std::array::from_fn::<_, 3, _>(|c| {
+            s(self.position[c])
+                .add(dir[c].mul(s(self.znear)))
+                .to_array()
+        });
+        let unit = dir.map(|d| d.div(len).to_array());
+        let t_max = self
+            .zfar
+            .map_or(s(f32::INFINITY), |f| s((f - self.znear).max(0.0)).mul(len));
+        let lane = |i: usize, v: &[[f32; 4]; 3]| Vec3::new(v[0][i], v[1][i], v[2][i]);
+        (
+            std::array::from_fn(|i| Ray::new(lane(i, &start), lane(i, &unit))),
+            t_max.to_array(),
+        )
     }
 
     /// The projection of `project` as one matrix, for points and directions alike: a world
@@ -318,6 +373,44 @@ mod tests {
         let l = EyeCamera::new(world(), &stereo, View::LEFT).position();
         let r = EyeCamera::new(world(), &stereo, View::RIGHT).position();
         assert!(((r - l).length() - stereo.interaxial).abs() < 1e-6);
+    }
+
+    #[test]
+    fn four_rays_at_once_are_bit_for_bit_one_at_a_time() {
+        let bits = |r: &Ray, t: f32| {
+            let v = [r.origin.to_array(), r.dir.to_array()].concat();
+            (
+                v.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                t.to_bits(),
+            )
+        };
+        let mut seed = 0x9e37_79b9u32;
+        let mut next = move |scale: f32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            (seed >> 8) as f32 / (1u32 << 24) as f32 * scale
+        };
+        for rig in [Rig::OffAxis, Rig::Parallel, Rig::ToeIn, Rig::Mono] {
+            for zfar in [None, Some(40.0), Some(0.05)] {
+                let p = RigParams {
+                    zfar,
+                    ..params(rig)
+                };
+                for view in [View::LEFT, View::RIGHT] {
+                    let c = EyeCamera::new(world(), &p, view);
+                    for _ in 0..500 {
+                        let px: [f32; 4] = std::array::from_fn(|_| next(640.0));
+                        let py: [f32; 4] = std::array::from_fn(|_| next(360.0));
+                        let (rays, limits) = c.rays4(px, py);
+                        for i in 0..4 {
+                            let (one, limit) = c.ray(px[i], py[i]);
+                            assert_eq!(bits(&rays[i], limits[i]), bits(&one, limit));
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -296,14 +296,17 @@ impl<A: Intersect> Packets<'_, '_, A> {
                     spp,
                     [(lane.y * w + lane.x) as u32, film.frame, film.eye_seed],
                 );
-                let mut lane_rays = [Ray::new(Vec3::ZERO, Vec3::Z); SAMPLE_GROUP];
-                let mut lane_limits = [0.0; SAMPLE_GROUP];
+                // The group's camera rays four at a time (a short group repeats its last
+                // sample in the lanes it does not use).
+                let offsets: [Vec2; SAMPLE_GROUP] =
+                    std::array::from_fn(|k| samples.get(first + k.min(group - 1) as u32));
+                let (lane_rays, lane_limits) = view.camera.rays4(
+                    offsets.map(|o| lane.x as f32 + o.x),
+                    offsets.map(|o| lane.y as f32 + o.y),
+                );
                 for k in 0..group {
-                    let o = samples.get(first + k as u32);
-                    let f = Vec2::new(lane.x as f32 + o.x, lane.y as f32 + o.y);
-                    let (ray, limit) = view.camera.ray(f.x, f.y);
-                    (rays[k][i], limits[k][i], film_offset[k][i]) = (ray, limit, o);
-                    (lane_rays[k], lane_limits[k]) = (ray, limit);
+                    (rays[k][i], limits[k][i]) = (lane_rays[k], lane_limits[k]);
+                    film_offset[k][i] = offsets[k];
                 }
                 if let Some(PixelReuse::Hits(h)) = &lane.reuse {
                     let active = (1 << group) - 1;
