@@ -68,7 +68,7 @@ pub(crate) mod test_rng {
 
 pub use aabb::Aabb;
 pub use instances::{Part, PartTree, PrimMap, TwoLevel};
-pub use lanes::F4;
+pub(crate) use lanes::F4;
 pub use packet::{LANES, WIDE_LANES};
 pub use params::{BuildParams, SplitMethod};
 pub use query::force_narrow_packets;
