@@ -5,7 +5,7 @@
 //! alpha coverage (MASK hits that do not exist for any ray, BLEND surfaces over what lies behind).
 
 use super::BATCH;
-use super::shading::{self, ShadingModel, brdf, dielectric_fresnel, schlick};
+use super::shading::{self, BrdfLanes, ShadingModel, dielectric_fresnel, schlick};
 use super::surface::{SceneView, Shading, Surface};
 use crate::accel::{Hit, Intersect, Ray};
 use crate::scene::light::LightKind;
@@ -435,6 +435,11 @@ impl<A: Intersect> Integrator<'_, A> {
             }
             n_traced += k as u64;
             n_known += (n - k) as u64;
+            // The lanes this light reaches, four at a time: their BRDFs in lanes, then each
+            // lane's term.
+            let mut brdf = BrdfLanes::default();
+            let mut reached = [(0usize, 0usize, 0.0f32); 4];
+            let mut m = 0;
             for (&index, &vis) in members[..n].iter().zip(&visible_of[..n]) {
                 let (lane, q) = &queries[index];
                 // A light seen through BLEND surfaces is recorded as both lit and shadowed: a
@@ -446,20 +451,43 @@ impl<A: Intersect> Integrator<'_, A> {
                 if vis > 0.0 {
                     answers[*lane].0 |= bit;
                 }
-                if vis == 0.0 {
-                    continue;
+                if let (Some(s), true) = (&surfaces[*lane], vis > 0.0) {
+                    brdf.set(m, &s.point, s.sh.n, q.l, s.v);
+                    reached[m] = (*lane, index, vis);
+                    m += 1;
                 }
-                if let Some(s) = &surfaces[*lane] {
-                    let term = self.direct_term(s, q);
-                    direct[*lane] += if vis == 1.0 { term } else { vis * term };
+                if m == 4 {
+                    self.add_terms(&brdf, &reached, &queries, &mut direct);
+                    m = 0;
                 }
             }
+            self.add_terms(&brdf, &reached[..m], &queries, &mut direct);
         }
         bump(counts, |c| {
             c.shadow += n_traced;
             c.reused_shadow += n_known;
         });
         (direct, answers)
+    }
+
+    /// Adds each reached lane's direct term for one light: its BRDF (lane `i` of `brdf` for the
+    /// `i`-th of `reached`: lane, query index, visibility), times `n . l` and the irradiance.
+    fn add_terms(
+        &self,
+        brdf: &BrdfLanes,
+        reached: &[(usize, usize, f32)],
+        queries: &[(usize, LightQuery)],
+        direct: &mut [Vec3; BATCH],
+    ) {
+        if reached.is_empty() {
+            return;
+        }
+        let values = brdf.brdf(self.settings.shading);
+        for (&(lane, index, vis), value) in reached.iter().zip(values) {
+            let q = &queries[index].1;
+            let term = value * q.n_l * q.irradiance;
+            direct[lane] += if vis == 1.0 { term } else { vis * term };
+        }
     }
 
     /// The mirror ray (index 0) and the refraction ray (index 1) a surface asks for below
@@ -519,11 +547,6 @@ impl<A: Intersect> Integrator<'_, A> {
         } else {
             [None, None]
         }
-    }
-
-    /// What an unblocked light adds at a surface.
-    fn direct_term(&self, s: &Surface, q: &LightQuery) -> Vec3 {
-        brdf(self.settings.shading, &s.point, s.sh.n, q.l, s.v) * q.n_l * q.irradiance
     }
 
     /// The lights that can reach a surface (none for glass, which takes no direct light), in
