@@ -14,8 +14,9 @@ use crate::accel::Ray;
 use crate::error::Result;
 use crate::render::{ShadingModel, TraceSettings};
 use crate::scene::light::{Light, LightKind};
-use crate::scene::material::{AlphaMode, Material, Texture, TextureRef, Wrap};
+use crate::scene::material::{AlphaMode, Material, TextureRef};
 use crate::scene::pose::Geometry;
+use crate::scene::texture::{Texture, Wrap};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 

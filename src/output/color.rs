@@ -34,7 +34,7 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 /// Inverse of [`linear_to_srgb`].
 #[inline]
 pub fn srgb_to_linear(c: f32) -> f32 {
-    crate::scene::material::srgb_to_linear(c)
+    crate::scene::texture::srgb_to_linear(c)
 }
 
 /// Rounds a display value in [0, 1] to 8 bits; NaN becomes 0 so no output ever carries it.

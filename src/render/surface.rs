@@ -6,8 +6,9 @@
 use super::shading::SurfacePoint;
 use crate::accel::{Hit, Intersect, Ray};
 use crate::scene::light::Light;
-use crate::scene::material::{AlphaMode, Material, NormalMap, Texture, TextureRef};
+use crate::scene::material::{AlphaMode, Material, NormalMap, TextureRef};
 use crate::scene::pose::Geometry;
+use crate::scene::texture::Texture;
 use glam::{Vec2, Vec3, Vec4};
 
 /// What the integrator reads of a posed frame.

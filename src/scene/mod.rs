@@ -11,6 +11,7 @@ pub mod material;
 mod mesh;
 pub mod motion;
 pub mod pose;
+pub mod texture;
 
 pub use animation::{Animation, overlapping_animations};
 pub use camera::{CameraDef, distance_to_bounds, framing_camera};
@@ -21,8 +22,9 @@ pub use pose::PosedScene;
 use crate::error::{Error, Result};
 use glam::{Mat4, Quat, Vec3};
 use light::LightDef;
-use material::{Material, Texture};
+use material::Material;
 use std::path::{Path, PathBuf};
+use texture::Texture;
 
 /// Extensions whose meaning stereotrace renders (or, for the lights, reads).
 const SUPPORTED_EXTENSIONS: &[&str] = &[
