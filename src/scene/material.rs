@@ -7,7 +7,7 @@
 //! the specification makes them darken indirect (ambient) light only, and Whitted has none.
 
 use super::buffers::{read_uri, view_bytes};
-use super::texture::{Encoding, Texture, Wrap, srgb_to_linear};
+use super::texture::{Encoding, Texels, Texture, Wrap};
 use crate::error::{Error, Result};
 use glam::{Vec2, Vec3, Vec4};
 use std::collections::BTreeMap;
@@ -393,19 +393,11 @@ fn load_texture(
         gltf::image::Source::Uri { uri, .. } => read_uri(file, &object, uri)?,
     };
     let decoded = image::load_from_memory(&bytes)
-        .map_err(|e| Error::scene(file, &object, format!("cannot decode image: {e}")))?
-        .to_rgba32f();
+        .map_err(|e| Error::scene(file, &object, format!("cannot decode image: {e}")))?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
-    // The image crate returns the stored values scaled to [0,1]; colour slots are sRGB-encoded
-    // per the glTF specification, alpha and the data slots are linear.
-    let decode: fn(f32) -> f32 = match encoding {
-        Encoding::Srgb => srgb_to_linear,
-        Encoding::Linear => |x| x,
-    };
-    let texels = decoded
-        .pixels()
-        .map(|p| Vec4::new(decode(p[0]), decode(p[1]), decode(p[2]), p[3]))
-        .collect();
+    // Colour slots are sRGB-encoded per the glTF specification, alpha and the data slots are
+    // linear (`Texels::decode`).
+    let texels = Texels::decode(decoded, encoding);
     let sampler = t.sampler();
     let wrap = |w: gltf::texture::WrappingMode| match w {
         gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
