@@ -8,6 +8,7 @@ mod backend;
 mod camera;
 mod comfort;
 mod depth;
+mod direct;
 mod frame;
 mod integrator;
 mod reproject;
