@@ -30,7 +30,7 @@ use super::lanes::{F4, M4};
 use super::params::BuildParams;
 use super::plane_cost::{AxesCost, AxisCost};
 use super::small_split::{EXACT_MAX, exact_split};
-use super::spare::{CHUNK_CAPACITY, give, give_chunk, take, take_chunk};
+use super::spare::{CHUNK_CAPACITY, gather, give, give_chunk, take, take_chunk};
 use super::split::{PARALLEL_THRESHOLD, REFERENCE_BUDGET, Split, keep, share};
 use super::tree::depth_cap;
 use glam::Vec3;
@@ -355,12 +355,12 @@ impl Ctx<'_> {
                     (below, above)
                 })
                 .collect();
-            let nb = parts.iter().map(|p| p.0.len()).sum();
-            let na = parts.iter().map(|p| p.1.len()).sum();
-            let (mut below, mut above) = (take(nb), take(na));
+            let (mut below, mut above) = (Vec::new(), Vec::new());
+            rayon::join(
+                || below = gather(parts.iter().map(|p| &p.0[..])),
+                || above = gather(parts.iter().map(|p| &p.1[..])),
+            );
             for (b, a) in parts {
-                below.extend_from_slice(&b);
-                above.extend_from_slice(&a);
                 give_chunk(b);
                 give_chunk(a);
             }

@@ -1,8 +1,10 @@
 //! The pools of spare reference vectors the binned build reuses, so that after the first few
 //! levels it allocates nothing per node and rarely grows a vector into fresh pages: one per
-//! thread for the nodes' lists, one shared for the chunks of the parallel partition.
+//! thread for the nodes' lists, one shared for the chunks of the parallel partition; and the
+//! gather of those chunks into one list.
 
 use super::bins::Ref;
+use rayon::prelude::*;
 use std::cell::RefCell;
 
 thread_local! {
@@ -54,6 +56,27 @@ pub(super) fn give(v: Vec<Ref>) {
             s.push(v)
         }
     });
+}
+
+/// The chunks' lists one after another in a spare vector, copied on all threads: the copy is
+/// on the build's critical path at the top levels, where one node is all there is to do (about
+/// 20-27 ms of one thread on the 1M peer mesh, copied serially).
+pub(super) fn gather<'a>(chunks: impl Iterator<Item = &'a [Ref]> + Clone) -> Vec<Ref> {
+    let n = chunks.clone().map(<[Ref]>::len).sum();
+    let mut out = take(n);
+    let mut rest = &mut out.spare_capacity_mut()[..n];
+    let mut pieces = Vec::new();
+    for c in chunks {
+        let (piece, tail) = rest.split_at_mut(c.len());
+        pieces.push((piece, c));
+        rest = tail;
+    }
+    pieces
+        .into_par_iter()
+        .for_each(|(piece, c)| _ = piece.write_copy_of_slice(c));
+    // SAFETY: the pieces above cover the first `n` slots, and each was written.
+    unsafe { out.set_len(n) };
+    out
 }
 
 /// Buffers of `CHUNK_CAPACITY` references for the parallel partition's chunks, shared by all
