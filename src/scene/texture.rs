@@ -53,8 +53,9 @@ pub struct Texture {
 /// so every image, stay bit for bit those of the float texels. Deeper images keep floats.
 #[derive(Clone, Debug)]
 pub enum Texels {
+    /// RGBA bytes, four a texel: the decoder's own buffer where the image is RGBA already.
     Bytes {
-        texels: Vec<[u8; 4]>,
+        rgba: Vec<u8>,
         decode: Box<ByteDecode>,
     },
     Floats(Vec<Vec4>),
@@ -130,7 +131,8 @@ impl Texels {
             | DynamicImage::ImageRgb8(_)
             | DynamicImage::ImageRgba8(_) => Texels::Bytes {
                 decode: Box::new(ByteDecode::new(&image, encoding)),
-                texels: image.to_rgba8().pixels().map(|p| p.0).collect(),
+                // Taken, not copied: each copy of a 2048x2048 map is 16 MB of fresh pages.
+                rgba: image.into_rgba8().into_raw(),
             },
             _ => Texels::Floats(float_texels(&image, encoding)),
         }
@@ -140,14 +142,14 @@ impl Texels {
     #[inline]
     pub fn get(&self, i: usize) -> Vec4 {
         match self {
-            Texels::Bytes { texels, decode } => decode.texel(texels[i]),
+            Texels::Bytes { rgba, decode } => decode.texel(rgba.as_chunks::<4>().0[i]),
             Texels::Floats(texels) => texels[i],
         }
     }
 
     pub fn len(&self) -> usize {
         match self {
-            Texels::Bytes { texels, .. } => texels.len(),
+            Texels::Bytes { rgba, .. } => rgba.len() / 4,
             Texels::Floats(texels) => texels.len(),
         }
     }
@@ -179,7 +181,10 @@ impl Texture {
     pub fn sample(&self, uv: Vec2) -> Vec4 {
         // One match a lookup, not one a texel.
         match &self.texels {
-            Texels::Bytes { texels, decode } => self.sample_with(uv, |i| decode.texel(texels[i])),
+            Texels::Bytes { rgba, decode } => {
+                let texels = rgba.as_chunks::<4>().0;
+                self.sample_with(uv, |i| decode.texel(texels[i]))
+            }
             Texels::Floats(texels) => self.sample_with(uv, |i| texels[i]),
         }
     }
