@@ -355,10 +355,9 @@ impl Ctx<'_> {
                     (below, above)
                 })
                 .collect();
-            let (mut below, mut above) = (Vec::new(), Vec::new());
-            rayon::join(
-                || below = gather(parts.iter().map(|p| &p.0[..])),
-                || above = gather(parts.iter().map(|p| &p.1[..])),
+            let (below, above) = rayon::join(
+                || gather(parts.iter().map(|p| &p.0[..])),
+                || gather(parts.iter().map(|p| &p.1[..])),
             );
             for (b, a) in parts {
                 give_chunk(b);
