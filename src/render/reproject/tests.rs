@@ -116,7 +116,7 @@ fn a_step_in_parallax_refuses_reuse_around_it_and_only_there() {
 }
 
 #[test]
-fn pixels_in_or_near_the_edge_strip_trace() {
+fn pixels_in_the_edge_strip_trace_and_those_beside_it_reuse() {
     let g = Grid::new(20, 5, |_, _| 0.0);
     let mut windows = vec![RowWindow::default(); 20 * 5];
     for (row, out) in g.cells.chunks(20).zip(windows.chunks_mut(20)) {
@@ -129,9 +129,9 @@ fn pixels_in_or_near_the_edge_strip_trace() {
     let rows = (g.cells.as_slice(), windows.as_slice());
     plan_row(rows, &|y, x| y * 20 + x, (2, (20, 5)), &(3..20), &mut band);
     let traced: Vec<bool> = band.plans.iter().map(|p| *p == Plan::Trace).collect();
-    // The strip (0..3) and the window's half-width beside it trace; the film's right border
-    // does not.
-    assert_eq!(traced[..6], [true, true, true, true, true, false]);
+    // The strip (0..3) traces; the pixels beside it, whose windows reach into it, and the
+    // film's right border do not.
+    assert_eq!(traced[..6], [true, true, true, false, false, false]);
     assert!(!traced[19]);
 }
 
