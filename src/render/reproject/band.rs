@@ -228,7 +228,8 @@ fn around(x: usize, half: usize, len: usize) -> std::ops::RangeInclusive<usize> 
 /// the source could; the strip's cells in its window hold what the source saw there, which
 /// can make its rules refuse, never accept a surface the source did not see. (Tracing the
 /// window's half-width beside the strip as well, as this did before, gave the same images to
-/// within 0.01 dB on the diffuse scene and traced 11% more of the right eye's rays at 200x150.)
+/// within 0.01 dB on the diffuse scene, and 3.33 rays a right-eye pixel instead of 2.97 at
+/// 200x150 and 16 spp.)
 pub(super) fn plan_row(
     (cells, windows): (&[Cell], &[RowWindow]),
     at: &impl Fn(usize, usize) -> usize,
