@@ -38,12 +38,14 @@ pub fn tile_count(width: usize, height: usize) -> usize {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum EyeReuse {
-    /// Each eye is traced on its own: 2x2 pixel quads per packet.
+    /// Each eye is traced on its own: a packet holds two neighbouring pixels' samples (eight
+    /// pixels at one sample a pixel).
     #[default]
     Off,
-    /// Both eyes in one pass: a packet holds two neighbouring pixels of the left eye and the
-    /// same two of the right, whose rays share a scanline and most of their nodes. The images
-    /// are bit-identical to `off` (every lane computes its own ray's radiance exactly).
+    /// Both eyes in one pass: a packet holds one pixel's samples in the left eye and the same
+    /// pixel's in the right (a 2x2 quad of each at one sample a pixel), rays that share most
+    /// of their nodes. The images are bit-identical to `off` (every lane computes its own
+    /// ray's radiance exactly).
     Paired,
     /// The right eye (and every view after the left) takes the left eye's camera hits where
     /// the reprojection rule allows (`render/reproject/`) and traces the rest; shading,
@@ -112,8 +114,9 @@ pub fn render_views<A: Intersect>(
     );
     let (w, h, spp) = (first.width, first.height, first.spp);
     let tiles_x = w.div_ceil(TILE);
-    // A packet's pixels: a 4x2 block of one view, or a 2x2 quad of each of two views (both
-    // eyes' rays of one quad in one packet where they share an octant).
+    // The pixels handed to the integrator together: a 4x2 block of one view, or a 2x2 quad of
+    // each of two views, a pixel's views one after the other (`Packets::trace` makes packets
+    // of their samples; rays of both eyes share a packet where they share an octant).
     const _: () = assert!(BATCH == 8);
     let (block_w, block_h) = if views.len() == 1 { (4, 2) } else { (2, 2) };
     // One tile per task: tiles differ in cost by orders of magnitude (sky against a glass
@@ -163,9 +166,9 @@ pub fn render_views<A: Intersect>(
             let mut pending: SmallVec<[Lane; BATCH]> = SmallVec::new();
             for by in (y0..y1).step_by(block_h) {
                 for bx in (x0..x1).step_by(block_w) {
-                    for (v, view) in views.iter().enumerate() {
-                        for y in by..(by + block_h).min(y1) {
-                            for x in bx..(bx + block_w).min(x1) {
+                    for y in by..(by + block_h).min(y1) {
+                        for x in bx..(bx + block_w).min(x1) {
+                            for (v, view) in views.iter().enumerate() {
                                 let reuse = match view.role {
                                     ViewRole::Target(r) => r.pixel(x, y),
                                     _ => None,
@@ -278,17 +281,20 @@ impl<A: Intersect> Packets<'_, '_, A> {
         let role = self.views[0].role;
         let geometry = self.integrator.scene.geometry;
         let mut sums = [Vec3::ZERO; BATCH];
-        let mut radiance = [Vec3::ZERO; BATCH];
-        let mut records = [PrimaryRecord::NONE; BATCH];
         let n = lanes.len();
         // Samples go four at a time: a reused pixel verifies the four samples' rays against
         // its candidates together, four rays to each triangle test.
         for first in (0..spp).step_by(SAMPLE_GROUP) {
             let group = ((spp - first) as usize).min(SAMPLE_GROUP);
-            let mut rays = [[Ray::new(Vec3::ZERO, Vec3::Z); BATCH]; SAMPLE_GROUP];
-            let mut limits = [[0.0; BATCH]; SAMPLE_GROUP];
-            let mut known = [[None; BATCH]; SAMPLE_GROUP];
-            let mut film_offset = [[Vec2::ZERO; BATCH]; SAMPLE_GROUP];
+            // The group's rays pixel by pixel (sample k of lane i at `i * group + k`), and the
+            // packets consecutive runs of them: 2 pixels of 4 samples at 4 spp and more, 8
+            // pixels of one sample at 1 spp. A pixel's samples are the most alike rays there
+            // are, so a packet walks fewer nodes than one of a sample of 8 pixels.
+            const ALL: usize = BATCH * SAMPLE_GROUP;
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); ALL];
+            let mut limits = [0.0; ALL];
+            let mut known = [None; ALL];
+            let mut film_offset = [Vec2::ZERO; ALL];
             for (i, lane) in lanes.iter().enumerate() {
                 let view = &self.views[lane.view];
                 let film = &view.film;
@@ -304,45 +310,52 @@ impl<A: Intersect> Packets<'_, '_, A> {
                     offsets.map(|o| lane.x as f32 + o.x),
                     offsets.map(|o| lane.y as f32 + o.y),
                 );
-                for k in 0..group {
-                    (rays[k][i], limits[k][i]) = (lane_rays[k], lane_limits[k]);
-                    film_offset[k][i] = offsets[k];
-                }
+                let at = i * group;
+                rays[at..at + group].copy_from_slice(&lane_rays[..group]);
+                limits[at..at + group].copy_from_slice(&lane_limits[..group]);
+                film_offset[at..at + group].copy_from_slice(&offsets[..group]);
                 if let Some(PixelReuse::Hits(h)) = &lane.reuse {
                     let active = (1 << group) - 1;
                     let verified = h.verify4(lane_rays, active, lane_limits, geometry);
-                    for k in 0..group {
-                        known[k][i] = verified[k];
-                    }
+                    known[at..at + group].copy_from_slice(&verified[..group]);
                 }
             }
-            for k in 0..group {
+            let mut radiance = [Vec3::ZERO; ALL];
+            let mut records = [PrimaryRecord::NONE; ALL];
+            let count = n * group;
+            for a in (0..count).step_by(BATCH) {
+                let b = (a + BATCH).min(count);
                 let primary = match role {
                     ViewRole::Plain => Primary::Trace,
-                    ViewRole::Source(_) => Primary::Record(&mut records[..n]),
-                    ViewRole::Target(_) => Primary::Known(&known[k][..n]),
+                    ViewRole::Source(_) => Primary::Record(&mut records[a..b]),
+                    ViewRole::Target(_) => Primary::Known(&known[a..b]),
                 };
                 self.integrator.radiance_packet(
-                    &rays[k][..n],
-                    &limits[k][..n],
+                    &rays[a..b],
+                    &limits[a..b],
                     primary,
                     &self.counts,
-                    &mut radiance[..n],
+                    &mut radiance[a..b],
                 );
-                for (sum, r) in sums.iter_mut().zip(&radiance[..n]) {
+            }
+            // Each pixel adds its samples in their order, whatever the packets were.
+            for (i, sum) in sums[..n].iter_mut().enumerate() {
+                for r in &radiance[i * group..(i + 1) * group] {
                     *sum += *r;
                 }
-                if let Some(source) = &mut out.source {
-                    for (i, lane) in lanes.iter().enumerate() {
-                        let p = records[i].point;
+            }
+            if let Some(source) = &mut out.source {
+                for (i, lane) in lanes.iter().enumerate() {
+                    let at = (lane.y - y0) * tw + (lane.x - x0);
+                    for j in i * group..(i + 1) * group {
+                        let p = records[j].point;
                         let sample = Sample {
-                            film_x: film_offset[k][i].x,
-                            film_y: film_offset[k][i].y,
+                            film_x: film_offset[j].x,
+                            film_y: film_offset[j].y,
                             depth: self.views[0].camera.depth(p),
                             distance: p.distance(self.eye),
                         };
-                        let at = (lane.y - y0) * tw + (lane.x - x0);
-                        source.add(at, sample, &records[i], radiance[i]);
+                        source.add(at, sample, &records[j], radiance[j]);
                     }
                 }
             }
