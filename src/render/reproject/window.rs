@@ -35,30 +35,41 @@ pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWin
     let width = row.len();
     SUMMARIES.with_borrow_mut(|summaries| {
         // What every window reads of a cell, once per cell, packed: the windows then read
-        // 36 bytes a cell instead of the 100-byte cell, with no range checks in their loops.
+        // 36 bytes a cell instead of the 100-byte cell. The row is padded with `WINDOW_X`
+        // cells on each side that change no window (the film's border cuts the windows), so
+        // that every window is the same five summaries, with no range checks in its loop.
         summaries.clear();
-        summaries.extend(row.iter().enumerate().map(|(x, c)| {
-            CellSummary {
-                // Rule 1: the pixel or a horizontal neighbour holds a sample.
-                near: row[x.saturating_sub(1)..(x + 2).min(width)]
-                    .iter()
-                    .any(Cell::covered),
+        summaries.resize(width + 2 * WINDOW_X, CellSummary::BEYOND);
+        let cells = &mut summaries[WINDOW_X..WINDOW_X + width];
+        for (s, c) in cells.iter_mut().zip(row) {
+            *s = CellSummary {
+                near: c.covered(),
                 holds: c.distinct > 0,
                 overflow: c.overflow,
                 parallax: c.parallax,
                 lit: c.lit,
                 shadowed: c.shadowed,
                 value: c.lent_radiance(),
-            }
-        }));
+            };
+        }
+        // Rule 1: the pixel or a horizontal neighbour holds a sample.
+        let mut covered = (false, cells.first().is_some_and(|s| s.near));
+        for x in 0..width {
+            let next = cells.get(x + 1).is_some_and(|s| s.near);
+            let near = covered.0 || covered.1 || next;
+            (covered, cells[x].near) = ((covered.1, next), near);
+        }
         // Radiance windows' errors centred on the pixel before, this one and the next.
         let unseen = radiance.unwrap_or(f32::INFINITY);
+        let padded = &summaries[..];
         let error = |k: usize| match radiance.is_some() && k < width {
-            true => window_error(row, summaries, k),
+            true => window_error(row, &padded[WINDOW_X..WINDOW_X + width], k),
             false => WindowError::NONE,
         };
         let (mut before, mut here) = (WindowError::NONE, error(0));
-        for x in 0..width {
+        let windows = padded.windows(2 * WINDOW_X + 1);
+        for ((x, out), window) in out.iter_mut().enumerate().zip(windows) {
+            let window: &[CellSummary; 2 * WINDOW_X + 1] = window.try_into().expect("5 cells");
             let after = error(x + 1);
             let interpolation = before.total.min(here.total).min(after.total);
             let slack = RADIANCE_BOUND - interpolation - unseen * here.bend;
@@ -66,7 +77,7 @@ pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWin
             (before, here) = (here, after);
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
             let (mut lit, mut shadowed, mut near) = (0, 0, true);
-            for s in &summaries[x.saturating_sub(WINDOW_X)..(x + WINDOW_X + 1).min(width)] {
+            for s in window {
                 lo = lo.min(s.parallax[0]);
                 hi = hi.max(s.parallax[1]);
                 lit |= s.lit;
@@ -76,17 +87,17 @@ pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWin
             let spread = hi - lo;
             let ok = near && !(spread > MAX_PARALLAX_SPREAD || spread.is_nan());
             let (mut hits, mut overflow) = (false, false);
-            for s in &summaries[x.saturating_sub(CANDIDATE_X)..(x + CANDIDATE_X + 1).min(width)] {
+            for s in &window[WINDOW_X - CANDIDATE_X..=WINDOW_X + CANDIDATE_X] {
                 hits |= s.holds;
                 overflow |= s.overflow;
             }
-            out[x] = RowWindow {
+            *out = RowWindow {
                 ok,
                 hits,
                 overflow,
                 lit,
                 shadowed,
-                radiance: summaries[x].value.filter(|_| ok && lend),
+                radiance: window[WINDOW_X].value.filter(|_| ok && lend),
                 vertical_room: slack / unseen,
             };
         }
@@ -106,6 +117,19 @@ struct CellSummary {
     shadowed: u32,
     /// `Cell::lent_radiance`.
     value: Option<Vec3>,
+}
+
+impl CellSummary {
+    /// Beyond the film's border: a summary that changes no window it joins.
+    const BEYOND: CellSummary = CellSummary {
+        near: true,
+        holds: false,
+        overflow: false,
+        parallax: [f32::INFINITY, f32::NEG_INFINITY],
+        lit: 0,
+        shadowed: 0,
+        value: None,
+    };
 }
 
 thread_local! {
@@ -149,19 +173,23 @@ impl WindowError {
 fn window_error(row: &[Cell], summaries: &[CellSummary], k: usize) -> WindowError {
     let first = k.saturating_sub(1).min(row.len().saturating_sub(3));
     let cells = first..(first + 3).min(row.len());
-    let bend = match summaries[cells.clone()] {
-        [
-            CellSummary { value: Some(a), .. },
-            CellSummary { value: Some(b), .. },
-            CellSummary { value: Some(c), .. },
-        ] => a - 2.0 * b + c,
-        [
-            CellSummary { value: Some(a), .. },
-            CellSummary { value: Some(b), .. },
-        ] => a - b,
-        _ => return WindowError::NONE,
-    };
-    let window = &row[cells];
+    // Three cells, or two in a film two pixels wide; as arrays, so that the loops below unroll.
+    let value = |s: &CellSummary| s.value;
+    match (&summaries[cells.clone()], &row[cells]) {
+        ([a, b, c], [ca, cb, cc]) => match (value(a), value(b), value(c)) {
+            (Some(a), Some(b), Some(c)) => bounded_error(a - 2.0 * b + c, [ca, cb, cc]),
+            _ => WindowError::NONE,
+        },
+        ([a, b], [ca, cb]) => match (value(a), value(b)) {
+            (Some(a), Some(b)) => bounded_error(a - b, [ca, cb]),
+            _ => WindowError::NONE,
+        },
+        _ => WindowError::NONE,
+    }
+}
+
+/// `window_error` of the cells of `window`, whose landed values bend by `bend`.
+fn bounded_error<const N: usize>(bend: Vec3, window: [&Cell; N]) -> WindowError {
     let bend = bend.abs().max_element();
     let total = if window.iter().all(|c| !c.means) {
         let bound = window.iter().map(|c| c.plane_bound).fold(0.0, f32::max);
