@@ -9,6 +9,7 @@ use super::window::{CANDIDATE_X, RowWindow, WINDOW_Y, row_windows};
 use super::{LOBE_FRACTION, MAX_PARALLAX_SPREAD};
 use crate::accel::prefetch;
 use glam::Vec3;
+use smallvec::SmallVec;
 use std::ops::Range;
 
 /// Candidates a target pixel tests. Where there are more, the pixel traces: its candidates
@@ -142,21 +143,16 @@ pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: 
     }
 }
 
-/// How far the radiance `value` of target pixel (x, y) and that landed above and below it
-/// bend away from a line, per channel at most (0 where a row beside it holds no radiance).
-fn vertical_bend(
-    cells: &[Cell],
-    (x, y): (usize, usize),
-    height: usize,
-    at: &impl Fn(usize, usize) -> usize,
-    value: Vec3,
-) -> f32 {
-    if y == 0 || y + 1 >= height {
+/// How far the radiance `value` of target pixel `x` of the middle row of `rows` and that
+/// landed above and below it bend away from a line, per channel at most (0 where a row beside
+/// it holds no radiance, or lies beyond the film).
+fn vertical_bend(rows: &Rows, x: usize, value: Vec3) -> f32 {
+    if !rows.between {
         return 0.0;
     }
     match (
-        cells[at(y - 1, x)].lent_radiance(),
-        cells[at(y + 1, x)].lent_radiance(),
+        rows.rows[rows.at_y - 1].0[x].lent_radiance(),
+        rows.rows[rows.at_y + 1].0[x].lent_radiance(),
     ) {
         (Some(above), Some(below)) => (above - 2.0 * value + below).abs().max_element(),
         _ => 0.0,
@@ -237,16 +233,22 @@ pub(super) fn plan_row(
     columns: &Range<usize>,
     band: &mut BandPlan,
 ) {
+    // The window's rows, cut by the film's border, each as its cells and row windows.
+    let rows: SmallVec<[(&[Cell], &[RowWindow]); 3]> = around(y, WINDOW_Y, height)
+        .map(|cy| {
+            let base = at(cy, 0);
+            (&cells[base..base + width], &windows[base..base + width])
+        })
+        .collect();
+    let at_y = y - y.saturating_sub(WINDOW_Y);
+    let rows = Rows {
+        rows: &rows,
+        at_y,
+        between: at_y > 0 && at_y + 1 < rows.len(),
+    };
     for x in 0..width {
         let plan = if columns.contains(&x) {
-            plan_pixel(
-                cells,
-                windows,
-                (x, y),
-                (width, height),
-                at,
-                &mut band.candidates,
-            )
+            plan_pixel(&rows, x, &mut band.candidates)
         } else {
             Plan::Trace
         };
@@ -254,18 +256,21 @@ pub(super) fn plan_row(
     }
 }
 
-/// Rules 1-4 for target pixel (x, y) of a film of `width` x `height`, outside rule 3's strips.
-fn plan_pixel(
-    cells: &[Cell],
-    windows: &[RowWindow],
-    (x, y): (usize, usize),
-    (width, height): (usize, usize),
-    at: &impl Fn(usize, usize) -> usize,
-    candidates: &mut Vec<u32>,
-) -> Plan {
+/// The rows of a target row's windows (the row, and those above and below it within the
+/// film), each as its cells and row windows.
+struct Rows<'a> {
+    rows: &'a [(&'a [Cell], &'a [RowWindow])],
+    /// The target row's place among them.
+    at_y: usize,
+    /// Both a row above and one below lie within the film (`vertical_bend`).
+    between: bool,
+}
+
+/// Rules 1-4 for target pixel `x` of the middle row of `rows`, outside rule 3's strips.
+fn plan_pixel(rows: &Rows, x: usize, candidates: &mut Vec<u32>) -> Plan {
     let (mut lit, mut shadowed, mut hits, mut overflow) = (0u32, 0u32, false, false);
-    for cy in around(y, WINDOW_Y, height) {
-        let r = &windows[at(cy, x)];
+    for (_, windows) in rows.rows {
+        let r = &windows[x];
         if !r.ok {
             return Plan::Trace;
         }
@@ -276,8 +281,9 @@ fn plan_pixel(
     }
     // The radiance's bound covers shadow edges among the samples as it does texture edges, so
     // the window's shadows need not agree (their bits are only reused on the hits below).
-    if let Some(v) = windows[at(y, x)].radiance
-        && vertical_bend(cells, (x, y), height, at, v) <= windows[at(y, x)].vertical_room
+    let here = &rows.rows[rows.at_y].1[x];
+    if let Some(v) = here.radiance
+        && vertical_bend(rows, x, v) <= here.vertical_room
     {
         return Plan::Radiance(v);
     }
@@ -290,9 +296,8 @@ fn plan_pixel(
         return Plan::Trace;
     }
     let first = candidates.len();
-    let xs = around(x, CANDIDATE_X, width);
-    for cy in around(y, WINDOW_Y, height) {
-        for c in &cells[at(cy, *xs.start())..=at(cy, *xs.end())] {
+    for (cells, _) in rows.rows {
+        for c in &cells[around(x, CANDIDATE_X, cells.len())] {
             for &prim in &c.prims[..c.distinct as usize] {
                 if !candidates[first..].contains(&prim) {
                     candidates.push(prim);
