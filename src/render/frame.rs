@@ -220,20 +220,12 @@ pub fn render_views<A: Intersect>(
             }
         })
         .collect();
-    let mut images: Vec<Image> = views.iter().map(|_| Image::new(w, h)).collect();
+    let images: Vec<Image> = (0..views.len())
+        .map(|v| assemble(&tiles, v, (w, h)))
+        .collect();
     let mut counts = RayCounts::default();
     let mut source = Vec::new();
-    for (t, tile) in tiles.into_iter().enumerate() {
-        let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
-        let tw = (x0 + TILE).min(w) - x0;
-        // Row by row: 2.0 ms a 640x360 eye against 2.5 a pixel at a time (what is left is
-        // mostly the first touch of the image's pages).
-        for (image, view_pixels) in images.iter_mut().zip(&tile.pixels) {
-            for (r, row) in view_pixels.chunks_exact(tw).enumerate() {
-                let at = (y0 + r) * w + x0;
-                image.pixels[at..at + tw].copy_from_slice(row);
-            }
-        }
+    for tile in tiles {
         counts.add(&tile.counts);
         source.extend(tile.source);
     }
@@ -243,6 +235,37 @@ pub fn render_views<A: Intersect>(
         images,
         counts,
         source,
+    }
+}
+
+/// View `v`'s image of `w` x `h` from its tiles, a band of tile rows on each thread, into
+/// memory not zeroed first. A 1920x1080 eye's zeroed image, filled after on one thread, took
+/// 6-56 ms (over 37 in half the runs, nearly all of it the zeroing), this 5-13 ms (2 threads).
+fn assemble(tiles: &[TileResult], v: usize, (w, h): (usize, usize)) -> Image {
+    let tiles_x = w.div_ceil(TILE);
+    let mut pixels = Vec::with_capacity(w * h);
+    let bands = pixels.spare_capacity_mut()[..w * h].par_chunks_mut(TILE * w.max(1));
+    bands.enumerate().for_each(|(ty, band)| {
+        for (tx, tile) in tiles[ty * tiles_x..(ty + 1) * tiles_x].iter().enumerate() {
+            let x0 = tx * TILE;
+            let tw = (x0 + TILE).min(w) - x0;
+            // Each tile of the band holds all of the band's rows (checked), and the band's
+            // tiles side by side span its width: every pixel of the band is written.
+            let rows = tile.pixels[v].chunks_exact(tw);
+            assert_eq!(rows.len() * w, band.len(), "a tile as high as its band");
+            // Row by row: 2.0 ms a 640x360 eye against 2.5 a pixel at a time.
+            for (r, row) in rows.enumerate() {
+                band[r * w + x0..r * w + x0 + tw].write_copy_of_slice(row);
+            }
+        }
+    });
+    // SAFETY: every pixel was written above (the bands cover the image, and each band's
+    // tiles cover the band); a failed check panics before this.
+    unsafe { pixels.set_len(w * h) };
+    Image {
+        width: w,
+        height: h,
+        pixels,
     }
 }
 
@@ -374,4 +397,50 @@ struct TileResult {
     pixels: Vec<Vec<Vec3>>,
     counts: RayCounts,
     source: Option<FinishedTile>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_assemble_into_the_image_at_their_places() {
+        // A film that no whole number of tiles covers, in either direction.
+        let (w, h) = (2 * TILE + 5, TILE + 3);
+        let value = |x: usize, y: usize| Vec3::new(x as f32, y as f32, 1.0);
+        let tiles: Vec<TileResult> = (0..tile_count(w, h))
+            .map(|t| {
+                let tiles_x = w.div_ceil(TILE);
+                let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
+                let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+                let view = |v: f32| {
+                    (y0..y1)
+                        .flat_map(|y| (x0..x1).map(move |x| value(x, y) * v))
+                        .collect()
+                };
+                TileResult {
+                    pixels: vec![view(1.0), view(-1.0)],
+                    counts: RayCounts::default(),
+                    source: None,
+                }
+            })
+            .collect();
+        for (v, sign) in [(0, 1.0), (1, -1.0)] {
+            let image = assemble(&tiles, v, (w, h));
+            assert_eq!(
+                (image.width, image.height, image.pixels.len()),
+                (w, h, w * h)
+            );
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(
+                        image.get(x, y),
+                        value(x, y) * sign,
+                        "({x}, {y}) of view {v}"
+                    );
+                }
+            }
+        }
+        assert!(assemble(&[], 0, (0, 0)).pixels.is_empty());
+    }
 }
