@@ -242,12 +242,18 @@ impl Ctx<'_> {
 
     /// The cheapest plane, or `None` when a leaf is cheaper (the SAH termination rule).
     fn find_split(&self, refs: &[Ref], node_box: &Aabb) -> Option<Split> {
+        let leaf_cost = self.params.intersection_cost * refs.len() as f32;
+        // A plane costs at least K_T (`AxisCost::cost`: its area term is never negative), so
+        // where a leaf costs no more than that, no plane beats it and there is nothing to search
+        // (nodes of up to 3 references at K_T = 60).
+        if leaf_cost <= self.params.traversal_cost {
+            return None;
+        }
         let best = if refs.len() <= EXACT_MAX {
             exact_split(self.params, refs, node_box)
         } else {
             self.binned_split(refs, node_box)
         };
-        let leaf_cost = self.params.intersection_cost * refs.len() as f32;
         best.filter(|(cost, _)| *cost < leaf_cost).map(|(_, s)| s)
     }
 
