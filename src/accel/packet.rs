@@ -273,7 +273,15 @@ impl KdTree {
                 }
                 for &p in refs {
                     let tri = &self.triangles[p as usize];
-                    let lanes = mailbox.untested(p, active);
+                    // An any-hit walk tests again what it tested (a lane that missed a
+                    // triangle misses it again, one that hit is done): on the 1M peer mesh its
+                    // rays took 14.77 tests each instead of 14.23 and ran 3-4% faster without
+                    // the mailbox's bookkeeping; closest-hit rays lost 1-2% without it.
+                    let lanes = if ANY {
+                        active
+                    } else {
+                        mailbox.untested(p, active)
+                    };
                     if lanes == 0 {
                         continue;
                     }
