@@ -253,7 +253,7 @@ fn assemble(tiles: &[TileResult], v: usize, (w, h): (usize, usize)) -> Image {
             // tiles side by side span its width: every pixel of the band is written.
             let rows = tile.pixels[v].chunks_exact(tw);
             assert_eq!(rows.len() * w, band.len(), "a tile as high as its band");
-            // Row by row: 2.0 ms a 640x360 eye against 2.5 a pixel at a time.
+            // Row by row (a pixel at a time took a quarter longer, copied on one thread).
             for (r, row) in rows.enumerate() {
                 band[r * w + x0..r * w + x0 + tw].write_copy_of_slice(row);
             }

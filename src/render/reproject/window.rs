@@ -52,18 +52,21 @@ pub(super) fn row_windows(row: &[Cell], radiance: Option<f32>, out: &mut [RowWin
                 value: c.lent_radiance(),
             };
         }
-        // Rule 1: the pixel or a horizontal neighbour holds a sample.
-        let mut covered = (false, cells.first().is_some_and(|s| s.near));
+        // Rule 1: the pixel or a horizontal neighbour holds a sample. `near` still says
+        // whether the pixel itself and the next are covered when the pixel is reached.
+        let mut covered_before = false;
         for x in 0..width {
-            let next = cells.get(x + 1).is_some_and(|s| s.near);
-            let near = covered.0 || covered.1 || next;
-            (covered, cells[x].near) = ((covered.1, next), near);
+            let covered = cells[x].near;
+            let covered_after = cells.get(x + 1).is_some_and(|s| s.near);
+            cells[x].near = covered_before || covered || covered_after;
+            covered_before = covered;
         }
         // Radiance windows' errors centred on the pixel before, this one and the next.
         let unseen = radiance.unwrap_or(f32::INFINITY);
         let padded = &summaries[..];
+        let unpadded = &padded[WINDOW_X..WINDOW_X + width];
         let error = |k: usize| match radiance.is_some() && k < width {
-            true => window_error(row, &padded[WINDOW_X..WINDOW_X + width], k),
+            true => window_error(row, unpadded, k),
             false => WindowError::NONE,
         };
         let (mut before, mut here) = (WindowError::NONE, error(0));
