@@ -300,7 +300,7 @@ impl Ctx<'_> {
                 self.refine(refs, node_box, binning, &costs[axis], window, &mut best);
             }
         }
-        BIN_STORE.set(counts.counts);
+        BIN_STORE.with_borrow_mut(|store| *store = counts.counts);
         best
     }
 
