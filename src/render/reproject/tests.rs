@@ -331,3 +331,23 @@ fn a_source_pixel_lands_on_the_cells_its_span_overlaps_weighted_by_the_overlap()
     assert_eq!(&row[4].prims[..row[4].distinct as usize], &[7, 8]);
     assert!(!row[2].covered() && row[5].covered() && !row[6].covered());
 }
+
+#[test]
+fn films_narrower_or_lower_than_a_window_plan_every_pixel() {
+    // The film's border cuts the windows to what is left of them: a flat surface reuses
+    // everywhere, with or without radiance, however small the film.
+    for (w, h) in [(1, 1), (2, 1), (1, 2), (3, 1), (2, 3), (4, 2)] {
+        let g = Grid::new(w, h, |_, _| 0.0);
+        for radiance in [false, true] {
+            let plans = g.plan(radiance);
+            for y in 0..h {
+                for x in 0..w {
+                    assert!(
+                        plans.pixel(x, y).is_some(),
+                        "{w}x{h} at ({x}, {y}), {radiance}"
+                    );
+                }
+            }
+        }
+    }
+}
