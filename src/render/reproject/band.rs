@@ -147,7 +147,7 @@ pub(super) fn land_row(source: &SourcePixels, y: usize, landing: &Landing, row: 
 /// landed above and below it bend away from a line, per channel at most (0 where a row beside
 /// it holds no radiance, or lies beyond the film).
 fn vertical_bend(rows: &Rows, x: usize, value: Vec3) -> f32 {
-    if !rows.between {
+    if !rows.between() {
         return 0.0;
     }
     match (
@@ -241,11 +241,7 @@ pub(super) fn plan_row(
         })
         .collect();
     let at_y = y - y.saturating_sub(WINDOW_Y);
-    let rows = Rows {
-        rows: &rows,
-        at_y,
-        between: at_y > 0 && at_y + 1 < rows.len(),
-    };
+    let rows = Rows { rows: &rows, at_y };
     for x in 0..width {
         let plan = if columns.contains(&x) {
             plan_pixel(&rows, x, &mut band.candidates)
@@ -262,8 +258,13 @@ struct Rows<'a> {
     rows: &'a [(&'a [Cell], &'a [RowWindow])],
     /// The target row's place among them.
     at_y: usize,
+}
+
+impl Rows<'_> {
     /// Both a row above and one below lie within the film (`vertical_bend`).
-    between: bool,
+    fn between(&self) -> bool {
+        self.at_y > 0 && self.at_y + 1 < self.rows.len()
+    }
 }
 
 /// Rules 1-4 for target pixel `x` of the middle row of `rows`, outside rule 3's strips.
