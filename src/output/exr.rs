@@ -4,10 +4,13 @@
 //! `right.R` etc.), or one file per view carrying a `view` attribute. Scanline, ZIP, float32 or half.
 
 use super::exr_header::{check_size, with_true_chunk_count};
+use super::exr_zip;
 use super::image::Image;
 use super::planes::Planes;
 use super::write_atomic;
 use crate::error::{Error, Result};
+use exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
+use exr::block::writer::ChunksWriter;
 use exr::prelude::*;
 use smallvec::SmallVec;
 use std::path::Path;
@@ -49,11 +52,39 @@ fn write_layer(
     let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels.into_iter().collect();
     let layer = Layer::new(size, attributes, encoding(), AnyChannels::sort(list));
     let image = exr::image::Image::from_layer(layer);
+    // The crate writes the header and the offset table; the chunks are compressed here.
+    let headers = image.write().infer_meta_data();
+    debug_assert_eq!(headers[0].compression, Compression::ZIP16);
+    let layer = &image.layer_data;
+    let width = size.0;
+    let chunks = exr_zip::chunks(size.1, |y, out| {
+        for channel in &layer.channel_data.list {
+            let row = y * width..(y + 1) * width;
+            match &channel.sample_data {
+                FlatSamples::F32(v) => out.extend(v[row].iter().flat_map(|s| s.to_le_bytes())),
+                FlatSamples::F16(v) => out.extend(v[row].iter().flat_map(|s| s.to_le_bytes())),
+                FlatSamples::U32(v) => out.extend(v[row].iter().flat_map(|s| s.to_le_bytes())),
+            }
+        }
+    });
     write_atomic(path, |w| {
-        image
-            .write()
-            .to_buffered(w)
-            .map_err(|e| std::io::Error::other(e.to_string()))
+        exr::block::write(w, headers, true, |_, writer| {
+            for (index, pixels) in chunks.into_iter().enumerate() {
+                let block = CompressedScanLineBlock {
+                    y_coordinate: (index * exr_zip::LINES_PER_CHUNK) as i32,
+                    compressed_pixels_le: pixels,
+                };
+                writer.write_chunk(
+                    index,
+                    Chunk {
+                        layer_index: 0,
+                        compressed_block: CompressedBlock::ScanLine(block),
+                    },
+                )?;
+            }
+            Ok(())
+        })
+        .map_err(|e| std::io::Error::other(e.to_string()))
     })
 }
 

@@ -8,6 +8,7 @@ mod color;
 mod container;
 pub mod exr;
 mod exr_header;
+mod exr_zip;
 mod fed_process;
 pub mod image;
 mod layout;
