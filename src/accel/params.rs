@@ -43,13 +43,20 @@ pub struct BuildParams {
 ///   four-ray packets 15 had been the best (25-60 traced `diffuse.toml` 6-8% slower);
 /// - up to 512k, 40: TransmissionTest (128,775) traced its frame in 8.9-9.0 s against 9.4-9.8 s
 ///   with 15 and 9.0-9.3 with 60; BrainStem and StanfordBunny the same as with 15;
-/// - above, 60: on the 1M peer mesh four-ray packets ran 12.6 Mrays/s against 10.3 with 15 and
-///   11.9 with 40, single rays 8.5 against 7.9, and the build took 0.76 s against 1.39.
+/// - above, 100: with eight-ray packets, on the 1M peer mesh's rays (`vs-embree.sh`'s), it built
+///   in 0.277-0.278 s against 0.361 with 60 (Embree 4: 0.17-0.19 s), and its packets traced
+///   19.56-19.88 camera and 9.09-9.18 shadow Mrays/s against 19.31-19.35 and 8.91-9.04;
+///   bunny_loop2 (1.1M) built in 0.32-0.33 s against 0.43 and its packets traced 5-8% faster;
+///   MetalRoughSpheresNoTextures (1.0M) built in 0.27-0.29 s against 0.36, its camera packets
+///   the same and its shadow packets 10-12% slower. Single rays, which take a leaf's triangles
+///   one by one, lose: 8-9% on the peer mesh's camera rays, 12-16% on MetalRoughSpheres' shadow
+///   rays (two alternating rounds of `bench accel --traversal-cost 60,80,100,115`). 60 had been
+///   the best with four-ray packets (12.6 Mrays/s against 10.3 with 15 and 11.9 with 40).
 pub fn traversal_cost_for(triangles: usize) -> f32 {
     match triangles {
         0..32_768 => 25.0,
         32_768..524_288 => 40.0,
-        _ => 60.0,
+        _ => 100.0,
     }
 }
 
