@@ -245,7 +245,7 @@ impl Ctx<'_> {
         let leaf_cost = self.params.intersection_cost * refs.len() as f32;
         // A plane costs at least K_T (`AxisCost::cost`: its area term is never negative), so
         // where a leaf costs no more than that, no plane beats it and there is nothing to search
-        // (nodes of up to 2 references at K_T = 40, 5 at K_T = 100).
+        // (nodes of up to 3 references at K_T = 60, 5 at K_T = 100).
         if leaf_cost <= self.params.traversal_cost {
             return None;
         }

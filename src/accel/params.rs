@@ -41,8 +41,16 @@ pub struct BuildParams {
 ///   `pipelines/diffuse.toml` in 0.212-0.214 s against 0.214-0.217 (three alternating runs,
 ///   the images byte-identical); 40 was no better than 15 (0.470-0.489, 0.213-0.222). With
 ///   four-ray packets 15 had been the best (25-60 traced `diffuse.toml` 6-8% slower);
-/// - up to 512k, 40: TransmissionTest (128,775) traced its frame in 8.9-9.0 s against 9.4-9.8 s
-///   with 15 and 9.0-9.3 with 60; BrainStem and StanfordBunny the same as with 15;
+/// - up to 512k, 60: with eight-ray packets (`bench accel --traversal-cost 40,60,80 --walk
+///   single,packet --film 384`, 2 threads, two rounds) bunny (69k) built in 0.032 s against
+///   0.045-0.049 with 40, bunny_loop1 (278k) in 0.12-0.16 s against 0.18-0.20 and
+///   TransmissionTest (129k) in 0.045-0.057 s against 0.069-0.072, their packets 3-15% faster
+///   (but for one round of TransmissionTest's shadow packets, 5% slower) and single rays 0-13%
+///   slower (the most, TransmissionTest's camera rays in one round); TransmissionTest's
+///   stereo frame at 480x270 traced in 2.06-2.50 s against 2.11-2.77 (five alternating rounds,
+///   the images byte-identical), and BrainStem's rebuilt frame updated in 26.3-26.9 ms against
+///   37.3-38.5 with its tracing the same. 40 had been the best with four-ray packets
+///   (TransmissionTest's frame 8.9-9.0 s against 9.4-9.8 with 15 and 9.0-9.3 with 60);
 /// - above, 100: with eight-ray packets, on the 1M peer mesh's rays (`vs-embree.sh`'s), it built
 ///   in 0.277-0.278 s against 0.361 with 60 (Embree 4: 0.17-0.19 s), and its packets traced
 ///   19.56-19.88 camera and 9.09-9.18 shadow Mrays/s against 19.31-19.35 and 8.91-9.04;
@@ -55,7 +63,7 @@ pub struct BuildParams {
 pub fn traversal_cost_for(triangles: usize) -> f32 {
     match triangles {
         0..32_768 => 25.0,
-        32_768..524_288 => 40.0,
+        32_768..524_288 => 60.0,
         _ => 100.0,
     }
 }
