@@ -54,7 +54,7 @@ pub struct BuildParams {
 /// - above, 100: with eight-ray packets, on the 1M peer mesh's rays (`vs-embree.sh`'s), it built
 ///   in 0.277-0.278 s against 0.361 with 60 (Embree 4: 0.17-0.19 s), and its packets traced
 ///   19.56-19.88 camera and 9.09-9.18 shadow Mrays/s against 19.31-19.35 and 8.91-9.04;
-///   bunny_loop2 (1.1M) built in 0.32-0.33 s against 0.43 and its packets traced 5-8% faster;
+///   bunny_loop2 (1.1M) built in 0.32-0.33 s against 0.43 and its packets traced 3-9% faster;
 ///   MetalRoughSpheresNoTextures (1.0M) built in 0.27-0.29 s against 0.36, its camera packets
 ///   the same and its shadow packets 10-12% slower. Single rays, which take a leaf's triangles
 ///   one by one, lose: 8-9% on the peer mesh's camera rays, 12-16% on MetalRoughSpheres' shadow
