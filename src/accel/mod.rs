@@ -40,6 +40,7 @@ mod stats;
 mod traverse;
 mod tree;
 pub mod triangle;
+mod triangle4;
 mod update;
 
 use glam::Vec3;

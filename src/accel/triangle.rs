@@ -14,8 +14,12 @@ use glam::{Mat3A, Vec3, Vec3A};
 /// product would, and the exact zeros of the other terms change no bit of the result; no
 /// component is picked by a runtime index.
 pub struct RayPre {
-    origin: Vec3A,
+    pub(super) origin: Vec3A,
     shear: Mat3A,
+    /// The shear's axes `[kx, ky, kz]` and its column `kz`, `(-sx, -sy, sz)`, for
+    /// `triangle4::intersect4`.
+    pub(super) axes: [usize; 3],
+    pub(super) shear_kz: [f32; 3],
 }
 
 impl RayPre {
@@ -40,6 +44,8 @@ impl RayPre {
         RayPre {
             origin: ray.origin.into(),
             shear: Mat3A::from_cols(shear[0], shear[1], shear[2]),
+            axes: order,
+            shear_kz: [-sx, -sy, sz],
         }
     }
 }
@@ -89,6 +95,43 @@ pub fn intersect(pre: &RayPre, tri: &[Vec3; 3], t_max: f32) -> Option<(f32, f32,
         return None;
     }
     Some((t, v * inv_det, w * inv_det))
+}
+
+/// The watertight test past its edge functions, lane by lane: from the edge functions `u`, `v`,
+/// `w` and the sheared vertices' depths, the lanes outside `outside` that hit within `t_max`
+/// (the scalar test's pre-test before the division, then its exact test), and every lane's
+/// `(t, b1, b2)`. The same operations in the same order as `intersect`.
+#[inline(always)]
+pub(super) fn depths<L: Lanes<N>, const N: usize>(
+    u: L,
+    v: L,
+    w: L,
+    [az, bz, cz]: [L; 3],
+    t_max: L,
+    outside: u32,
+) -> (u32, [[f32; N]; 3]) {
+    let zero = L::splat(0.0);
+    let det = u.add(v).add(w);
+    let t_scaled = u.mul(az).add(v.mul(bz)).add(w.mul(cz));
+    let t_signed = t_scaled.flip_sign_of(det);
+    let far = t_max.mul(det.abs());
+    let ahead = t_signed.gt(zero).bits();
+    let beyond = far.ge(L::splat(f32::MIN_POSITIVE)).bits()
+        & t_signed
+            .gt(far.mul(L::splat(1.0 + 8.0 * f32::EPSILON)))
+            .bits();
+    let inv_det = L::splat(1.0).div(det);
+    let t = t_scaled.mul(inv_det);
+    let in_range = t.gt(zero).bits() & t.lt(t_max).bits();
+    let hit = !outside & !det.eq(zero).bits() & ahead & !beyond & in_range;
+    (
+        hit,
+        [
+            t.to_array(),
+            v.mul(inv_det).to_array(),
+            w.mul(inv_det).to_array(),
+        ],
+    )
 }
 
 /// `N` rays' `RayPre`, lane by lane, so that one triangle is tested against `N` rays at once
@@ -221,31 +264,15 @@ pub(super) fn intersect_packet<L: Lanes<N>, const N: usize>(
         pre.row(&rel[1], 2),
         pre.row(&rel[2], 2),
     );
-    let det = u.add(v).add(w);
-    let t_scaled = u.mul(az).add(v.mul(bz)).add(w.mul(cz));
-    // The scalar test's pre-test before the division, lane by lane (see `intersect`).
-    let t_signed = t_scaled.flip_sign_of(det);
-    let far = t_max.mul(det.abs());
-    let ahead = t_signed.gt(zero).bits();
-    let beyond = far.ge(L::splat(f32::MIN_POSITIVE)).bits()
-        & t_signed
-            .gt(far.mul(L::splat(1.0 + 8.0 * f32::EPSILON)))
-            .bits();
-    let inv_det = L::splat(1.0).div(det);
-    let t = t_scaled.mul(inv_det);
-    let in_range = t.gt(zero).bits() & t.lt(t_max).bits();
-    let mut hit = lanes
-        & !exact_zero
-        & !(negative & positive)
-        & !det.eq(zero).bits()
-        & ahead
-        & !beyond
-        & in_range;
-    let mut out = [
-        t.to_array(),
-        v.mul(inv_det).to_array(),
-        w.mul(inv_det).to_array(),
-    ];
+    let (mut hit, mut out) = depths(
+        u,
+        v,
+        w,
+        [az, bz, cz],
+        t_max,
+        exact_zero | (negative & positive),
+    );
+    hit &= lanes;
     if exact_zero != 0 {
         let limits = t_max.to_array();
         for i in (0..N).filter(|i| exact_zero >> i & 1 == 1) {
