@@ -11,8 +11,9 @@ use glam::{Mat3A, Vec3, Vec3A};
 /// Per-ray constants of the shear transform, stored as a 3x3 matrix so that a vertex's sheared
 /// coordinates are one SIMD matrix-vector product: `x = v[kx] - sx v[kz]` is row x of the matrix
 /// (1 at `kx`, `-sx` at `kz`) times `v`. Each lane sums its three products in the order a dot
-/// product would, and the exact zeros of the other terms change no bit of the result; no
-/// component is picked by a runtime index.
+/// product would, and the exact zeros of the other terms change no bit of the result; `intersect`
+/// picks no component by a runtime index (the four-triangle test, `triangle4.rs`, does, once
+/// per vertex for four triangles).
 pub struct RayPre {
     pub(super) origin: Vec3A,
     shear: Mat3A,

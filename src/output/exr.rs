@@ -15,8 +15,14 @@ use exr::prelude::*;
 use smallvec::SmallVec;
 use std::path::Path;
 
+/// ZIP over 16 scanlines, top to bottom (the crate's `SMALL_LOSSLESS`), written out: the chunks
+/// `exr_zip` compresses are exactly these.
 fn encoding() -> Encoding {
-    Encoding::SMALL_LOSSLESS
+    Encoding {
+        compression: Compression::ZIP16,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    }
 }
 
 fn samples(values: Vec<f32>, half: bool) -> FlatSamples {
