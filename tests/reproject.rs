@@ -10,7 +10,7 @@ mod common;
 
 use common::{position_buffers, quad, reference_dirs, reference_pipeline, repo, scratch};
 use serde_json::json;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use stereotrace::compare::{Comparison, Planes, Thresholds, Verdict, compare};
 use stereotrace::output::Image;
 use stereotrace::output::exr::{read_view_planes, read_views};
@@ -78,6 +78,19 @@ fn render(pipeline: &Path, eye_reuse: &str, threads: usize, name: &str) -> Rende
         reused,
         traced,
     }
+}
+
+/// `pipelines/diffuse.toml` with each `(from, to)` of `edits` replaced, written into the
+/// scratch folder `name`, its scene read from the repository.
+fn diffuse_pipeline(name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(repo().join("pipelines/diffuse.toml")).unwrap();
+    for (from, to) in edits {
+        text = text.replace(from, to);
+    }
+    let text = text.replace("\"../scenes/", &format!("\"{}/scenes/", repo().display()));
+    let path = scratch(name).join("diffuse.toml");
+    std::fs::write(&path, text).unwrap();
+    path
 }
 
 fn eye<'a>(r: &'a Render, name: &str) -> &'a Image {
@@ -277,15 +290,14 @@ fn a_scene_built_to_break_reuse_stays_within_the_bound_and_the_left_eye_is_untou
 /// them, and the right eye gave 82.6 dB (`docs/guide/stereo-reuse.md`, tried and dropped).
 #[test]
 fn reused_hits_at_16_spp_are_those_of_the_full_trace() {
-    let out = scratch("reproject-diffuse-16spp");
-    let path = out.join("diffuse_16spp.toml");
-    let text = std::fs::read_to_string(repo().join("pipelines/diffuse.toml"))
-        .unwrap()
-        .replace("width = 640", "width = 200")
-        .replace("height = 360", "height = 150")
-        .replace("spp = 4", "spp = 16")
-        .replace("\"../scenes/", &format!("\"{}/scenes/", repo().display()));
-    std::fs::write(&path, text).unwrap();
+    let path = diffuse_pipeline(
+        "reproject-diffuse-16spp",
+        &[
+            ("width = 640", "width = 200"),
+            ("height = 360", "height = 150"),
+            ("spp = 4", "spp = 16"),
+        ],
+    );
     let off = render(&path, "off", 2, "reproject-16spp-off");
     let reuse = render(&path, "reproject", 2, "reproject-16spp-reuse");
     let d = diff(eye(&reuse, "right"), eye(&off, "right"));
@@ -317,14 +329,13 @@ fn reprojection_does_not_depend_on_the_thread_count() {
 
 #[test]
 fn reprojection_refuses_a_toe_in_rig() {
-    let out = scratch("reproject-toe-in");
-    let path = out.join("toe.toml");
-    let text = std::fs::read_to_string(repo().join("pipelines/diffuse.toml"))
-        .unwrap()
-        .replace("[render]", "[render]\neye_reuse = \"reproject\"")
-        .replace("rig = \"off-axis\"", "rig = \"toe-in\"")
-        .replace("\"../scenes/", &format!("\"{}/scenes/", repo().display()));
-    std::fs::write(&path, text).unwrap();
+    let path = diffuse_pipeline(
+        "reproject-toe-in",
+        &[
+            ("[render]", "[render]\neye_reuse = \"reproject\""),
+            ("rig = \"off-axis\"", "rig = \"toe-in\""),
+        ],
+    );
     let err = match LoadedPipeline::load(&path) {
         Ok(_) => panic!("reproject with toe-in was accepted"),
         Err(e) => e.to_string(),
