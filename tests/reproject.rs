@@ -85,6 +85,10 @@ fn render(pipeline: &Path, eye_reuse: &str, threads: usize, name: &str) -> Rende
 fn diffuse_pipeline(name: &str, edits: &[(&str, &str)]) -> PathBuf {
     let mut text = std::fs::read_to_string(repo().join("pipelines/diffuse.toml")).unwrap();
     for (from, to) in edits {
+        assert!(
+            text.contains(from),
+            "pipelines/diffuse.toml has no {from:?}"
+        );
         text = text.replace(from, to);
     }
     let text = text.replace("\"../scenes/", &format!("\"{}/scenes/", repo().display()));
